@@ -1,0 +1,59 @@
+"""Small input checks shared by the public functions (they raise :class:`ValidationError`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from phyloc.errors import ValidationError
+
+
+def positive(name: str, value, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as float if it is finite and > 0 (or >= 0 with ``allow_zero``)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValidationError(name, value, "a real number is required") from None
+    ok = math.isfinite(x) and (x >= 0 if allow_zero else x > 0)
+    if not ok:
+        raise ValidationError(name, value, "must be finite and " + (">= 0" if allow_zero else "> 0"))
+    return x
+
+
+def finite(name: str, value) -> float:
+    """Return ``value`` as float if it is a finite real number."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValidationError(name, value, "a real number is required") from None
+    if not math.isfinite(x):
+        raise ValidationError(name, value, "must be finite")
+    return x
+
+
+def integer(name: str, value, *, minimum: int | None = None) -> int:
+    """Return ``value`` as int if it is integral (and >= ``minimum``)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        if not (isinstance(value, float) and value.is_integer()):
+            raise ValidationError(name, value, "an integer is required")
+    x = int(value)
+    if minimum is not None and x < minimum:
+        raise ValidationError(name, value, f"must be an integer >= {minimum}")
+    return x
+
+
+def finite_array(name: str, a, *, dtype=np.float64, ndim: int | None = None) -> np.ndarray:
+    """Return ``a`` as a C-contiguous array of ``dtype``; reject NaN/inf and wrong ``ndim``."""
+    try:
+        arr = np.ascontiguousarray(a, dtype=dtype)
+    except (TypeError, ValueError):
+        raise ValidationError(name, "<array>", f"must convert to {np.dtype(dtype).name}") from None
+    if ndim is not None and arr.ndim != ndim:
+        raise ValidationError(name, f"array of shape {arr.shape}", f"must be {ndim}-D")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.isfinite(arr.ravel()))[0])
+        raise ValidationError(
+            name, f"{arr.ravel()[bad]} at flat index {bad}", "every entry must be finite"
+        )
+    return arr

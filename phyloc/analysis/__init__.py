@@ -1,0 +1,1 @@
+"""phyloc.analysis (see DESIGN.md)."""

@@ -1,0 +1,1 @@
+"""phyloc.channels (see DESIGN.md)."""

@@ -1,0 +1,1 @@
+"""phyloc.datasets (see DESIGN.md)."""

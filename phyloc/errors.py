@@ -1,0 +1,27 @@
+"""Exceptions raised by phyloc.
+
+Every error a user can cause derives from :class:`PhylocError`; the command line prints its
+message without a traceback and exits non-zero.
+"""
+
+
+class PhylocError(Exception):
+    """Base class of the errors phyloc raises for bad input or unusable data."""
+
+
+class ValidationError(PhylocError, ValueError):
+    """A parameter is outside its allowed range or has the wrong shape.
+
+    The message names the parameter (``field``), the value received and what is allowed.
+    """
+
+    def __init__(self, field: str, value, allowed: str):
+        self.field = field
+        self.value = value
+        self.allowed = allowed
+        super().__init__(f"{field} = {_short(value)} is not allowed: {allowed}")
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."

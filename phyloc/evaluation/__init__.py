@@ -1,0 +1,1 @@
+"""phyloc.evaluation (see DESIGN.md)."""

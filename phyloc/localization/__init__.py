@@ -1,0 +1,1 @@
+"""phyloc.localization (see DESIGN.md)."""

@@ -1,0 +1,1 @@
+"""phyloc.network (see DESIGN.md)."""

@@ -1,0 +1,1 @@
+"""phyloc.ranging (see DESIGN.md)."""
