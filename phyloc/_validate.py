@@ -17,7 +17,9 @@ def positive(name: str, value, *, allow_zero: bool = False) -> float:
         raise ValidationError(name, value, "a real number is required") from None
     ok = math.isfinite(x) and (x >= 0 if allow_zero else x > 0)
     if not ok:
-        raise ValidationError(name, value, "must be finite and " + (">= 0" if allow_zero else "> 0"))
+        raise ValidationError(
+            name, value, "must be finite and " + (">= 0" if allow_zero else "> 0")
+        )
     return x
 
 
@@ -46,7 +48,9 @@ def integer(name: str, value, *, minimum: int | None = None) -> int:
 def finite_array(name: str, a, *, dtype=np.float64, ndim: int | None = None) -> np.ndarray:
     """Return ``a`` as a C-contiguous array of ``dtype``; reject NaN/inf and wrong ``ndim``."""
     try:
-        arr = np.ascontiguousarray(a, dtype=dtype)
+        arr = np.asarray(a, dtype=dtype)
+        if arr.ndim and not arr.flags.c_contiguous:
+            arr = np.ascontiguousarray(arr)
     except (TypeError, ValueError):
         raise ValidationError(name, "<array>", f"must convert to {np.dtype(dtype).name}") from None
     if ndim is not None and arr.ndim != ndim:

@@ -23,5 +23,5 @@ class ValidationError(PhylocError, ValueError):
 
 
 def _short(value) -> str:
-    text = repr(value)
+    text = value if isinstance(value, str) else repr(value)
     return text if len(text) <= 80 else text[:77] + "..."

@@ -66,7 +66,9 @@ class PathSet:
         if delays.size and delays.min() < 0:
             i = int(np.argmin(delays))
             raise ValidationError(
-                "paths.delays", f"{delays[i]!r} at index {i}", "delays must be >= 0 s (causal)"
+                "paths.delays",
+                f"{float(delays[i])!r} at index {i}",
+                "delays must be >= 0 s (causal)",
             )
         object.__setattr__(self, "delays", delays)
         object.__setattr__(self, "gains", gains)

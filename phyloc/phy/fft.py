@@ -1,0 +1,228 @@
+"""The one FFT seam of phyloc: length padding, normalization, pyFFTW plans and wisdom.
+
+Nothing else in phyloc imports :mod:`pyfftw`. Conventions (those of NumPy):
+
+.. math:: \\mathrm{fft}(a)_k = \\sum_m a_m e^{-j2π mk/L}, \\qquad
+          \\mathrm{ifft}(A)_m = \\frac1L \\sum_k A_k e^{+j2π mk/L}.
+
+Backends
+    ``pyfftw`` (planned FFTW transforms, threads, wisdom cached on disk) when importable, else
+    ``scipy.fft`` (pocketfft) with ``workers`` threads. :func:`set_backend` forces one.
+
+Wisdom
+    FFTW plans made with ``FFTW_MEASURE`` are remembered in ``$PHYLOC_CACHE_DIR/fftw_wisdom.json``
+    (default ``~/.cache/phyloc``), so a second process plans in milliseconds. Writes are atomic;
+    an unreadable wisdom file is ignored (and replaced on the next save).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import threading
+from pathlib import Path
+
+import numpy as np
+import scipy.fft
+
+from phyloc.errors import ValidationError
+
+try:  # pragma: no cover - exercised implicitly by which backend is active
+    import pyfftw
+
+    _HAVE_PYFFTW = True
+except ImportError:  # pragma: no cover
+    pyfftw = None
+    _HAVE_PYFFTW = False
+
+_state = {
+    "backend": "pyfftw" if _HAVE_PYFFTW else "scipy",
+    "threads": None,
+    "planner_effort": "FFTW_MEASURE",
+    "wisdom_loaded": False,
+}
+_plans: dict = {}
+_lock = threading.Lock()
+
+
+def default_threads() -> int:
+    """Threads for FFTs: ``PHYLOC_FFT_THREADS`` or the CPUs this process may use."""
+    env = os.environ.get("PHYLOC_FFT_THREADS")
+    if env:
+        return max(1, int(env))
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - non-Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def backend() -> str:
+    """The active backend, ``"pyfftw"`` or ``"scipy"``."""
+    return _state["backend"]
+
+
+def set_backend(name: str, *, threads: int | None = None, planner_effort: str | None = None):
+    """Choose the FFT backend (``"pyfftw"`` or ``"scipy"``), thread count and FFTW effort.
+
+    ``planner_effort`` is one of ``FFTW_ESTIMATE``, ``FFTW_MEASURE``, ``FFTW_PATIENT``.
+    """
+    allowed = {"pyfftw", "scipy"}
+    if name not in allowed:
+        raise ValidationError("fft.backend", name, f"one of {sorted(allowed)}")
+    if name == "pyfftw" and not _HAVE_PYFFTW:
+        raise ValidationError("fft.backend", name, "pyfftw is not installed; use 'scipy'")
+    efforts = ("FFTW_ESTIMATE", "FFTW_MEASURE", "FFTW_PATIENT")
+    if planner_effort is not None and planner_effort not in efforts:
+        raise ValidationError("fft.planner_effort", planner_effort, f"one of {efforts}")
+    with _lock:
+        _state["backend"] = name
+        if threads is not None:
+            _state["threads"] = max(1, int(threads))
+        if planner_effort is not None:
+            _state["planner_effort"] = planner_effort
+        _plans.clear()
+
+
+def threads() -> int:
+    """Threads the FFTs use."""
+    return _state["threads"] or default_threads()
+
+
+# -- lengths ---------------------------------------------------------------------------------
+def next_fast_len(n: int) -> int:
+    """Smallest length >= n that FFTs fast (factors 2, 3, 5 only)."""
+    return _smooth_len(int(n))
+
+
+def prev_fast_len(n: int) -> int:
+    """Largest 5-smooth length <= n (n >= 1)."""
+    m = int(n)
+    while m > 1 and not _is_smooth(m):
+        m -= 1
+    return max(m, 1)
+
+
+def _is_smooth(m: int) -> bool:
+    for p in (2, 3, 5):
+        while m % p == 0:
+            m //= p
+    return m == 1
+
+
+def _smooth_len(n: int) -> int:
+    # 5-smooth lengths suit FFTW and pocketfft alike; scipy's helper finds the next one.
+    return int(scipy.fft.next_fast_len(n, real=True))
+
+
+# -- wisdom ----------------------------------------------------------------------------------
+def wisdom_path() -> Path:
+    """Where FFTW wisdom is kept: ``$PHYLOC_CACHE_DIR/fftw_wisdom.json``."""
+    root = os.environ.get("PHYLOC_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "phyloc"
+    )
+    return Path(root) / "fftw_wisdom.json"
+
+
+def _load_wisdom() -> None:
+    if _state["wisdom_loaded"] or not _HAVE_PYFFTW:
+        return
+    _state["wisdom_loaded"] = True
+    try:
+        data = json.loads(wisdom_path().read_text())
+        pyfftw.import_wisdom(tuple(s.encode("ascii") for s in data["wisdom"]))
+    except (OSError, ValueError, KeyError, TypeError):
+        pass  # no or unreadable wisdom: plan afresh
+
+
+def save_wisdom() -> Path | None:
+    """Write the current FFTW wisdom to :func:`wisdom_path` atomically (None if not pyfftw)."""
+    if not _HAVE_PYFFTW:
+        return None
+    path = wisdom_path()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        text = json.dumps({"wisdom": [w.decode("ascii") for w in pyfftw.export_wisdom()]})
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".wisdom-", suffix=".tmp")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except OSError:
+        return None  # a read-only cache is not an error; plans are just slower next time
+    return path
+
+
+# -- planned batched transforms ----------------------------------------------------------------
+class BatchFFT:
+    """A planned forward FFT of a ``[batch, length]`` complex128 array along its last axis.
+
+    Holds aligned input/output buffers. :meth:`execute` transforms ``self.input`` into
+    ``self.output`` (or into a caller's aligned, C-contiguous ``out`` of the same shape).
+    """
+
+    def __init__(self, batch: int, length: int, *, n_threads: int | None = None):
+        self.shape = (int(batch), int(length))
+        self.backend = backend()
+        self.band = None  # callers may record which part of `input` they keep non-zero
+        self.n_threads = n_threads or threads()
+        if self.backend == "pyfftw":
+            _load_wisdom()
+            self.input = pyfftw.zeros_aligned(self.shape, dtype=np.complex128)
+            self.output = pyfftw.empty_aligned(self.shape, dtype=np.complex128)
+            self._plan = pyfftw.FFTW(
+                self.input,
+                self.output,
+                axes=(-1,),
+                direction="FFTW_FORWARD",
+                flags=(_state["planner_effort"],),
+                threads=self.n_threads,
+            )
+            self.input[...] = 0  # FFTW_MEASURE scribbles on the buffers while planning
+            save_wisdom()
+        else:
+            self.input = np.zeros(self.shape, dtype=np.complex128)
+            self.output = np.empty(self.shape, dtype=np.complex128)
+            self._plan = None
+
+    def execute(self, out: np.ndarray | None = None) -> np.ndarray:
+        """Run the transform of :attr:`input`; returns the output array."""
+        if self._plan is None:
+            res = scipy.fft.fft(self.input, axis=-1, workers=self.n_threads)
+            if out is None:
+                self.output[...] = res
+                return self.output
+            out[...] = res
+            return out
+        if out is None:
+            self._plan.execute()
+            return self.output
+        self._plan(output_array=out)
+        return out
+
+
+def batch_fft(batch: int, length: int) -> BatchFFT:
+    """A cached :class:`BatchFFT` for this shape (one plan per shape, backend and threads)."""
+    key = (batch, length, backend(), threads())
+    with _lock:
+        plan = _plans.get(key)
+        if plan is None:
+            plan = _plans[key] = BatchFFT(batch, length)
+        return plan
+
+
+def aligned_empty(shape, dtype=np.complex128) -> np.ndarray:
+    """An uninitialised array aligned for SIMD FFTs (pyFFTW) or a plain one (SciPy)."""
+    if _HAVE_PYFFTW:
+        return pyfftw.empty_aligned(shape, dtype=dtype)
+    return np.empty(shape, dtype=dtype)
+
+
+# -- one-off transforms ------------------------------------------------------------------------
+def fft(a, axis: int = -1) -> np.ndarray:
+    """Unnormalized forward DFT along ``axis`` (NumPy convention)."""
+    return scipy.fft.fft(np.asarray(a), axis=axis, workers=threads())
+
+
+def ifft(a, axis: int = -1) -> np.ndarray:
+    """Inverse DFT along ``axis`` with the ``1/L`` factor (NumPy convention)."""
+    return scipy.fft.ifft(np.asarray(a), axis=axis, workers=threads())

@@ -1,0 +1,140 @@
+"""Received OFDM signals of a batch of multipath links (DiPNet paper eq. (6)).
+
+In the frequency domain (DESIGN.md, signal model)
+
+.. math:: R_n = S_n \\sum_l α_l e^{-jωnτ_l} + W_n, \\qquad W_n \\sim \\mathcal{CN}(0, σ^2),
+
+which is the exact DFT of ``r(iT) = Σ_l α_l s(iT − τ_l) + ε(iT)`` for any real (fractional)
+delays: s(t) is periodic, so a delay is a phase ramp. :func:`~phyloc.phy.waveform.to_time_domain`
+gives the time samples (for ``os = 1`` the noise is then white with variance σ² per sample).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from phyloc.errors import ValidationError
+from phyloc.phy import _kernels
+from phyloc.phy.paths import PathSet
+from phyloc.phy.system import OFDMSystem
+from phyloc.phy.waveform import _check_rng, check_symbols
+
+
+def complex_noise(shape, noise_var, rng: np.random.Generator) -> np.ndarray:
+    """Circularly-symmetric complex Gaussian noise ``CN(0, σ²)``.
+
+    Parameters
+    ----------
+    shape : tuple
+        Output shape; the last axis is subcarriers (or samples).
+    noise_var : float or [shape[0]], float
+        Variance σ² [W] per entry, or one per row.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    w : shape, complex128
+    """
+    _check_rng(rng)
+    nv = np.asarray(noise_var, dtype=np.float64)
+    scale = np.sqrt(nv / 2.0)
+    shape = tuple(int(x) for x in shape)
+    # draw real and imaginary parts interleaved, then view them as complex: no copies
+    z = rng.standard_normal((*shape[:-1], 2 * shape[-1]))
+    w = z.view(np.complex128)
+    if scale.ndim == 1:
+        w *= scale.reshape((-1,) + (1,) * (len(shape) - 1))
+    else:
+        w *= scale
+    return w
+
+
+def synthesize(
+    paths: PathSet,
+    symbols,
+    system: OFDMSystem,
+    rng: np.random.Generator | None = None,
+    *,
+    tx_index=None,
+    noise_var=None,
+    backend: str = "numba",
+) -> np.ndarray:
+    """Frequency-domain received symbols of every link (eq. (6), DESIGN.md signal model).
+
+    Parameters
+    ----------
+    paths : PathSet
+        ``n_links`` links with delays ``τ_l`` [s] (>= 0) and gains ``α_l`` [√W].
+    symbols : [n_tx, N] or [N], complex
+        Pilot symbols of each transmitter (:func:`~phyloc.phy.waveform.qpsk_symbols`).
+    system : OFDMSystem
+    rng : numpy.random.Generator or None
+        Source of the noise. ``None`` gives the noise-free signal (then ``noise_var`` must be
+        None or 0).
+    tx_index : [n_links], int, optional
+        Row of ``symbols`` each link transmits; default row 0 for every link.
+    noise_var : float or [n_links], float, optional
+        Noise variance σ² [W] per subcarrier; default ``system.noise_power_w``.
+    backend : {"numba", "numpy"}
+        The Numba kernel (default) or its plain-NumPy twin (reference and benchmark).
+
+    Returns
+    -------
+    R : [n_links, N], complex128
+        ``R_n = S_n Σ_l α_l e^{−jωnτ_l} + W_n``; column j is subcarrier ``n = j − (N−1)/2``.
+
+    Examples
+    --------
+    >>> from phyloc.phy import OFDMSystem, PathSet
+    >>> from phyloc.phy.waveform import qpsk_symbols
+    >>> sysm = OFDMSystem(n_subcarriers=65)
+    >>> rng = np.random.default_rng(0)
+    >>> S = qpsk_symbols(sysm, 1, rng)
+    >>> R = synthesize(PathSet.single_path([1e-7], [1e-6]), S, sysm, rng)
+    >>> R.shape
+    (1, 65)
+    """
+    if not isinstance(paths, PathSet):
+        raise ValidationError("paths", type(paths).__name__, "a phyloc.phy.PathSet is required")
+    S = check_symbols(symbols, system)
+    n_links, N = paths.n_links, system.n_subcarriers
+    if tx_index is None:
+        tx = np.zeros(n_links, dtype=np.int64)
+    else:
+        tx = np.ascontiguousarray(tx_index, dtype=np.int64)
+        if tx.shape != (n_links,):
+            raise ValidationError(
+                "tx_index", f"shape {tx.shape}", f"must be [n_links] = [{n_links}]"
+            )
+        if n_links and (tx.min() < 0 or tx.max() >= S.shape[0]):
+            raise ValidationError(
+                "tx_index",
+                f"range [{tx.min()}, {tx.max()}]",
+                f"must index symbols rows 0…{S.shape[0] - 1}",
+            )
+    if rng is None:
+        if noise_var not in (None, 0, 0.0):
+            raise ValidationError("rng", None, "a Generator is required when noise_var > 0")
+        noise = np.zeros((n_links, N), dtype=np.complex128)
+    else:
+        nv = system.noise_power_w if noise_var is None else noise_var
+        nv = np.asarray(nv, dtype=np.float64)
+        if nv.ndim > 1 or (nv.ndim == 1 and nv.shape != (n_links,)):
+            raise ValidationError(
+                "noise_var", f"shape {nv.shape}", f"must be a scalar or [n_links] = [{n_links}]"
+            )
+        if not np.all(np.isfinite(nv)) or np.any(nv < 0):
+            raise ValidationError("noise_var", nv, "must be finite and >= 0 W")
+        noise = complex_noise((n_links, N), nv, rng)
+    n_first = -float((N - 1) // 2)
+    if backend == "numba":
+        out = np.empty((n_links, N), dtype=np.complex128)
+        _kernels.synthesize_kernel(
+            S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, noise, out
+        )
+        return out
+    if backend == "numpy":
+        return _kernels.synthesize_numpy(
+            S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, noise
+        )
+    raise ValidationError("backend", backend, "one of 'numba', 'numpy'")

@@ -1,0 +1,80 @@
+"""Ranging CRB (DiPNet eq. (24)) and the one-path Ziv–Zakai bound."""
+
+import math
+
+import numpy as np
+import pytest
+
+from naive import C0, trapezoid_zzb
+from phyloc.errors import ValidationError
+from phyloc.phy.bounds import crb_range, post_correlation_snr, zzb_range
+from phyloc.phy.waveform import qpsk_symbols
+
+
+@pytest.fixture
+def S(paper_system):
+    return qpsk_symbols(paper_system, 1, np.random.default_rng(0))[0]
+
+
+def test_crb_closed_form_for_unit_modulus_pilots(paper_system, S):
+    N = 2569
+    sum_n2 = (N - 1) * N * (N + 1) / 12  # Σ n² over the symmetric index set
+    omega = 2 * math.pi * 14650
+    snr = 0.37
+    expected = C0**2 / (2 * snr * omega**2 * sum_n2)
+    assert crb_range(snr, S, paper_system) == pytest.approx(expected, rel=1e-12)
+    assert post_correlation_snr(snr, S, paper_system) == pytest.approx(snr * N)
+
+
+def test_crb_scales_with_pilot_power(paper_system, S):
+    # doubling every |S_n|² is the same as doubling the SNR
+    assert crb_range(1.0, np.sqrt(2) * S, paper_system) == pytest.approx(
+        crb_range(2.0, S, paper_system)
+    )
+
+
+def test_zzb_tends_to_crb_at_high_snr(paper_system, S):
+    pc_db = np.array([30.0, 40.0, 50.0, 60.0])
+    snr = 10 ** (pc_db / 10) / 2569
+    ratio = zzb_range(snr, S, paper_system) / crb_range(snr, S, paper_system)
+    np.testing.assert_allclose(ratio, 1.0, atol=0.01)
+
+
+def test_zzb_exceeds_crb_below_threshold_and_is_capped_by_prior(paper_system, S):
+    D = 100.0
+    pc_db = np.arange(-30.0, 41.0, 2.5)
+    snr = 10 ** (pc_db / 10) / 2569
+    z = zzb_range(snr, S, paper_system, prior_range_m=D)
+    c = crb_range(snr, S, paper_system)
+    assert np.all(np.diff(z) <= 1e-12)  # non-increasing in SNR
+    assert np.all(z <= D**2 / 12 * (1 + 1e-9))
+    below = (pc_db >= -10) & (pc_db <= 5)
+    assert np.all(z[below] > 2.0 * c[below])
+    assert z[0] == pytest.approx(D**2 / 12, rel=0.05)  # no information: the prior variance
+
+
+def test_zzb_matches_brute_force_integral_without_valley_filling(paper_system, S):
+    n = paper_system.subcarrier_indices()
+    P = np.abs(S) ** 2
+    w = paper_system.omega / C0
+
+    def one_minus_rho(h):
+        return 1.0 - (np.cos(w * np.outer(h, n)) @ P) / P.sum()
+
+    for pc_db in (5.0, 12.0):
+        snr = 10 ** (pc_db / 10) / 2569
+        ref = trapezoid_zzb(snr * P.sum(), one_minus_rho, 60.0, n=8001)
+        got = zzb_range(snr, S, paper_system, prior_range_m=60.0, valley_filling=False)
+        assert got == pytest.approx(ref, rel=1e-3)
+        # valley filling only tightens (raises) the bound
+        assert zzb_range(snr, S, paper_system, prior_range_m=60.0) >= got
+
+
+def test_bounds_at_extreme_snr_stay_defined(paper_system, S):
+    assert crb_range(0.0, S, paper_system) == np.inf
+    z = zzb_range(np.array([0.0, 1e-30, 1e30]), S, paper_system)
+    assert np.all(np.isfinite(z)) and np.all(z >= 0)
+    with pytest.raises(ValidationError, match="snr"):
+        crb_range(-1.0, S, paper_system)
+    with pytest.raises(ValidationError, match="prior_range_m"):
+        zzb_range(1.0, S, paper_system, prior_range_m=0.0)
