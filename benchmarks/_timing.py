@@ -1,0 +1,26 @@
+"""Timing helpers shared by the benchmark modules (best of several runs, wall clock)."""
+
+from __future__ import annotations
+
+import time
+
+
+def best_seconds(fn, *, repeat: int = 5, number: int = 1, min_time: float = 0.0) -> float:
+    """Best wall time of one call of ``fn`` over ``repeat`` rounds of ``number`` calls.
+
+    ``fn`` is called once before timing (warm-up: JIT compilation, FFT planning, caches).
+    With ``min_time`` > 0, rounds continue until that much time has been spent.
+    """
+    fn()
+    best = float("inf")
+    spent = 0.0
+    rounds = 0
+    while rounds < repeat or spent < min_time:
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        dt = time.perf_counter() - t0
+        spent += dt
+        best = min(best, dt / number)
+        rounds += 1
+    return best

@@ -1,0 +1,228 @@
+"""PHY-core benchmarks: synthesis, correlation tables, the FFT floor, table interpolation.
+
+Work unit: one link of the DiPNet system (N = 2569 subcarriers) with 24 paths, in batches of
+256 links, tables at β ≈ 8 (L = 20480). Figures (names are the interface, see README):
+
+``synthesis_links_per_s``        Numba synthesis incl. AWGN (links/s)
+``synthesis_numpy_links_per_s``  its plain-NumPy twin
+``pipeline_links_per_s``         synthesis + correlation table
+``pipeline_numpy_links_per_s``   the same with the NumPy twin and ``numpy.fft``
+``fft_floor_links_per_s``        one bare planned FFT of length L per link (the floor)
+``pipeline_cost_over_floor``     (1/pipeline) / (1/floor): the pipeline's cost in FFT floors
+``synthesis_speedup_vs_numpy``   synthesis / synthesis_numpy
+``interp.<m>.points_per_s``      table evaluations per second (m = linear, cubic, quintic)
+``interp.<m>.max_rel_error``     max |f̃ − f| / max|f| over random distances, β ≈ 8
+``interp.<m>.peak_bias_m``       max distance error of the interpolated |f|² peak of a
+                                 noise-free one-path link (what a particle filter would see)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from phyloc.phy import C0, OFDMSystem, PathSet
+from phyloc.phy import fft as phyfft
+from phyloc.phy.correlation import correlation_tables, fft_length
+from phyloc.phy.synthesis import synthesize
+from phyloc.phy.waveform import qpsk_symbols
+
+try:
+    from phyloc.benchmarks._timing import best_seconds
+except ImportError:  # run from the source tree by asv
+    from benchmarks._timing import best_seconds
+
+N_LINKS = 256
+N_PATHS = 24
+BETA = 8.0
+
+
+def make_batch(n_links=N_LINKS, n_paths=N_PATHS, seed=0):
+    """A seeded batch: the paper's system, one pilot row, ``n_paths`` paths per link."""
+    system = OFDMSystem()
+    rng = np.random.default_rng(seed)
+    S = qpsk_symbols(system, 1, rng)
+    total = n_links * n_paths
+    d = np.repeat(rng.uniform(5.0, 140.0, n_links), n_paths) / C0
+    delays = d + rng.exponential(50e-9, total)
+    gains = 1e-6 * (rng.standard_normal(total) + 1j * rng.standard_normal(total))
+    paths = PathSet(delays, gains, np.arange(0, total + 1, n_paths))
+    return system, S, paths, rng
+
+
+def numpy_pipeline(paths, S, system, rng, beta=BETA):
+    """Plain-NumPy reference: NumPy-twin synthesis and ``numpy.fft`` of the padded spectrum."""
+    R = synthesize(paths, S, system, rng, backend="numpy")
+    L = fft_length(system, beta)
+    h = (system.n_subcarriers - 1) // 2
+    c = np.conj(R) * S[0]
+    buf = np.zeros((R.shape[0], L), dtype=np.complex128)
+    buf[:, : h + 1] = c[:, h:]
+    buf[:, L - h :] = c[:, :h]
+    return np.fft.fft(buf, axis=1)
+
+
+class Synthesis:
+    """asv: received signals of 256 links × 24 paths."""
+
+    params = [["numba", "numpy"]]
+    param_names = ["backend"]
+
+    def setup(self, backend):
+        self.system, self.S, self.paths, self.rng = make_batch()
+        synthesize(self.paths, self.S, self.system, self.rng, backend=backend)  # compile
+
+    def time_synthesize(self, backend):
+        synthesize(self.paths, self.S, self.system, self.rng, backend=backend)
+
+
+class Pipeline:
+    """asv: synthesis + correlation tables, and the bare FFT floor of the same length."""
+
+    def setup(self):
+        self.system, self.S, self.paths, self.rng = make_batch()
+        self.L = fft_length(self.system, BETA)
+        self.plan = phyfft.batch_fft(64, self.L)
+        self.time_pipeline()
+
+    def time_pipeline(self):
+        R = synthesize(self.paths, self.S, self.system, self.rng)
+        correlation_tables(R, self.S, self.system, beta=BETA)
+
+    def time_fft_floor(self):
+        for _ in range(N_LINKS // 64):
+            self.plan.execute()
+
+
+class Interpolation:
+    """asv: evaluating a table at 10⁵ random distances."""
+
+    params = [["linear", "cubic", "quintic"]]
+    param_names = ["method"]
+
+    def setup(self, method):
+        system, S, paths, rng = make_batch(n_links=16, n_paths=4)
+        self.table = correlation_tables(synthesize(paths, S, system, rng), S, system, beta=BETA)
+        self.d = rng.uniform(0.0, 200.0, (16, 100_000 // 16))
+        self.table.evaluate(self.d[:, :2], interpolation=method)
+
+    def time_evaluate(self, method):
+        self.table.evaluate(self.d, interpolation=method)
+
+
+def _interp_accuracy(method, rng, n_links=32):
+    system = OFDMSystem()
+    S = qpsk_symbols(system, 1, rng)
+    d_true = rng.uniform(5.0, 140.0, n_links)
+    R = synthesize(PathSet.single_path(d_true / C0, 1e-6), S, system, None)
+    tab = correlation_tables(R, S, system, beta=BETA)
+    d = rng.uniform(0.0, 200.0, (n_links, 2000))
+    err = np.abs(tab.evaluate(d, interpolation=method) - tab.exact(d)).max()
+    rel = err / np.abs(tab.values).max()
+    # peak of the interpolated |f|² on a fine (1 mm) grid around the truth
+    off = np.arange(-1.0, 1.0, 1e-3)
+    dd = d_true[:, None] + off[None, :]
+    f = tab.evaluate(dd, interpolation=method)
+    bias = np.abs(off[np.argmax(np.abs(f), axis=1)]).max()
+    return float(rel), float(bias)
+
+
+def report(quick: bool = False) -> dict[str, float]:
+    """Measure every figure of the module docstring; ``quick`` shortens the runs."""
+    repeat = 2 if quick else 5
+    system, S, paths, rng = make_batch()
+    L = fft_length(system, BETA)
+    fig: dict[str, float] = {"n_links": N_LINKS, "n_paths": N_PATHS, "n_fft": L, "beta": L / 2569}
+
+    t_syn = best_seconds(lambda: synthesize(paths, S, system, rng), repeat=repeat)
+    t_syn_np = best_seconds(
+        lambda: synthesize(paths, S, system, rng, backend="numpy"), repeat=max(1, repeat - 2)
+    )
+
+    def pipeline():
+        correlation_tables(synthesize(paths, S, system, rng), S, system, beta=BETA)
+
+    t_pipe = best_seconds(pipeline, repeat=repeat)
+    t_pipe_np = best_seconds(
+        lambda: numpy_pipeline(paths, S, system, rng), repeat=max(1, repeat - 2)
+    )
+    plan = phyfft.batch_fft(64, L)
+
+    def floor():
+        for _ in range(N_LINKS // 64):
+            plan.execute()
+
+    t_floor = best_seconds(floor, repeat=repeat)
+    fig["synthesis_links_per_s"] = N_LINKS / t_syn
+    fig["synthesis_numpy_links_per_s"] = N_LINKS / t_syn_np
+    fig["synthesis_speedup_vs_numpy"] = t_syn_np / t_syn
+    fig["pipeline_links_per_s"] = N_LINKS / t_pipe
+    fig["pipeline_numpy_links_per_s"] = N_LINKS / t_pipe_np
+    fig["fft_floor_links_per_s"] = N_LINKS / t_floor
+    fig["pipeline_cost_over_floor"] = t_pipe / t_floor
+    fig["fft_threads"] = phyfft.threads()
+
+    acc_rng = np.random.default_rng(1)
+    for method in ("linear", "cubic", "quintic"):
+        it = Interpolation()
+        it.setup(method)
+        t = best_seconds(lambda it=it, m=method: it.time_evaluate(m), repeat=repeat)
+        fig[f"interp.{method}.points_per_s"] = it.d.size / t
+        rel, bias = _interp_accuracy(method, acc_rng)
+        fig[f"interp.{method}.max_rel_error"] = rel
+        fig[f"interp.{method}.peak_bias_m"] = bias
+    return fig
+
+
+def summarize(fig: dict) -> str:
+    """The printed form of :func:`report`'s figures."""
+    from phyloc.reporting import format_table
+
+    def us(rate):
+        return 1e6 / rate
+
+    floor = fig["fft_floor_links_per_s"]
+    floor_np = fig["pipeline_numpy_links_per_s"]
+    rows = [
+        (
+            "synthesis (Numba, with AWGN)",
+            fig["synthesis_links_per_s"],
+            us(fig["synthesis_links_per_s"]),
+            f"{fig['synthesis_speedup_vs_numpy']:.1f}x NumPy twin",
+        ),
+        (
+            "synthesis (NumPy twin)",
+            fig["synthesis_numpy_links_per_s"],
+            us(fig["synthesis_numpy_links_per_s"]),
+            "reference",
+        ),
+        (
+            "pipeline: synthesis + table",
+            fig["pipeline_links_per_s"],
+            us(fig["pipeline_links_per_s"]),
+            f"{fig['pipeline_cost_over_floor']:.2f}x floor cost",
+        ),
+        (
+            "pipeline (plain NumPy)",
+            fig["pipeline_numpy_links_per_s"],
+            us(fig["pipeline_numpy_links_per_s"]),
+            f"reference ({fig['pipeline_links_per_s'] / floor_np:.0f}x slower)",
+        ),
+        ("floor: one planned FFT per link", floor, us(floor), f"L = {int(fig['n_fft'])}"),
+    ]
+    head = (
+        f"N = 2569 subcarriers, {int(fig['n_paths'])} paths/link, batches of "
+        f"{int(fig['n_links'])} links, beta = {fig['beta']:.3f}, "
+        f"{int(fig['fft_threads'])} FFT threads"
+    )
+    t1 = format_table(rows, ["work", "links/s", "us/link", "ratio"])
+    irows = [
+        (
+            m,
+            fig[f"interp.{m}.points_per_s"],
+            fig[f"interp.{m}.max_rel_error"],
+            fig[f"interp.{m}.peak_bias_m"],
+        )
+        for m in ("linear", "cubic", "quintic")
+    ]
+    t2 = format_table(irows, ["interpolation", "points/s", "max rel error", "peak bias [m]"])
+    return f"{head}\n{t1}\n\n{t2}"

@@ -1,0 +1,125 @@
+"""Machine-readable results (``--json PATH``) and plain-text tables for the command line.
+
+Every command that reports numbers writes a JSON object (DESIGN.md, "Figures out")::
+
+    {"figures": {"name": number, ...},   # flat, documented, stable names
+     "meta": {"phyloc_version": ..., "command": ..., "seed": ..., "machine": {...}},
+     "series": {"name": [numbers...], ...}}   # optional: arrays behind a plot
+
+Files are written atomically and an existing file is never replaced unless asked (``force``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from phyloc.errors import PhylocError
+
+
+class OutputExistsError(PhylocError, FileExistsError):
+    """An output file exists and overwriting it was not requested."""
+
+    def __init__(self, path):
+        super().__init__(f"{path} exists; choose another path or pass --force to replace it")
+
+
+def machine_meta() -> dict:
+    """Versions and hardware facts that a benchmark or result depends on."""
+    import numba
+    import scipy
+
+    from phyloc import __version__
+    from phyloc.phy import fft as phyfft
+
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover
+        cpus = os.cpu_count()
+    return {
+        "phyloc_version": __version__,
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpus": cpus,
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "numba": numba.__version__,
+        "numba_threads": numba.get_num_threads(),
+        "fft_backend": phyfft.backend(),
+        "fft_threads": phyfft.threads(),
+    }
+
+
+def _clean(x):
+    """JSON-safe numbers: NumPy scalars to Python, NaN/inf to None (JSON has neither)."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return [_clean(v) for v in x.tolist()]
+    if isinstance(x, (np.floating, float)):
+        f = float(x)
+        return f if math.isfinite(f) else None
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    return x
+
+
+def write_json(path, figures: dict, meta: dict, series: dict | None = None, *, force=False):
+    """Write the results object to ``path`` atomically; refuse to replace a file unless
+    ``force``. Returns the path."""
+    path = Path(path)
+    if path.exists() and not force:
+        raise OutputExistsError(path)
+    if path.parent and not path.parent.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+    doc = {"figures": _clean(figures), "meta": _clean(meta)}
+    if series:
+        doc["series"] = _clean(series)
+    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(doc, fh, indent=2, sort_keys=False)
+            fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def format_table(rows, headers) -> str:
+    """A plain-text table: ``rows`` are sequences of cells (numbers get 4 significant digits)."""
+
+    def cell(x):
+        if isinstance(x, (float, np.floating)):
+            x = float(x)
+            if x != 0 and (abs(x) >= 1e5 or abs(x) < 1e-3):
+                return f"{x:.4g}"
+            return f"{x:.4g}" if abs(x) < 1e4 else f"{x:,.0f}"
+        return str(x)
+
+    cells = [[cell(c) for c in r] for r in rows]
+    widths = [
+        max(len(h), *(len(r[i]) for r in cells)) if cells else len(h) for i, h in enumerate(headers)
+    ]
+    line = "  ".join(h.ljust(w) for h, w in zip(headers, widths, strict=True))
+    out = [line, "  ".join("-" * w for w in widths)]
+    for r in cells:
+        out.append(
+            "  ".join(
+                c.rjust(w) if i else c.ljust(w)
+                for i, (c, w) in enumerate(zip(r, widths, strict=True))
+            )
+        )
+    return "\n".join(out)
