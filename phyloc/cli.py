@@ -113,7 +113,7 @@ def cmd_bench(args) -> int:
     figures: dict[str, float] = {}
     t0 = time.perf_counter()
     for name in suites:
-        mod = importlib.import_module(BENCHMARKS[name])
+        mod = _import_benchmark(BENCHMARKS[name])
         print(f"== phyloc bench {name}{' (quick)' if args.quick else ''} ==", flush=True)
         fig = mod.report(quick=args.quick)
         summarize = getattr(mod, "summarize", None)
@@ -131,6 +131,17 @@ def cmd_bench(args) -> int:
         path = write_json(args.json, figures, meta, force=args.force)
         print(f"wrote {path}")
     return 0
+
+
+def _import_benchmark(module: str):
+    """Import a benchmark module from the installed package or, in a source checkout where
+    ``phyloc`` is imported from the working tree, from the top-level ``benchmarks`` folder."""
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name not in ("phyloc.benchmarks", module):
+            raise
+        return importlib.import_module(module.replace("phyloc.benchmarks.", "benchmarks."))
 
 
 def _generic_table(fig: dict) -> str:
