@@ -193,11 +193,17 @@ class BatchFFT:
                 return self.output
             out[...] = res
             return out
-        if out is None:
-            self._plan.execute()
-            return self.output
-        self._plan(output_array=out)
-        return out
+        target = self.output if out is None else out
+        if self._plan.output_array is not target:  # a previous call may have redirected it
+            try:
+                self._plan.update_arrays(self.input, target)
+            except ValueError:  # misaligned caller array: transform, then copy
+                self._plan.update_arrays(self.input, self.output)
+                self._plan.execute()
+                target[...] = self.output
+                return target
+        self._plan.execute()
+        return target
 
 
 def batch_fft(batch: int, length: int) -> BatchFFT:

@@ -1,0 +1,67 @@
+"""The FFT seam: smooth lengths, backends, plans and the on-disk wisdom cache."""
+
+import json
+
+import numpy as np
+import pytest
+
+from phyloc.errors import ValidationError
+from phyloc.phy import fft as phyfft
+
+
+def _smooth(m):
+    for p in (2, 3, 5):
+        while m % p == 0:
+            m //= p
+    return m == 1
+
+
+def test_fast_lengths_are_the_nearest_smooth_ones():
+    for n in (1, 7, 367, 2569, 20552, 99991):
+        up, down = phyfft.next_fast_len(n), phyfft.prev_fast_len(n)
+        assert _smooth(up) and _smooth(down) and down <= n <= up
+        # brute force: nothing smooth strictly between
+        assert not any(_smooth(m) for m in range(down + 1, n))
+        assert not any(_smooth(m) for m in range(n, up) if m != n) or _smooth(n)
+
+
+@pytest.mark.parametrize("backend", ["pyfftw", "scipy"])
+def test_batch_fft_equals_numpy(backend, rng):
+    previous = phyfft.backend()
+    try:
+        phyfft.set_backend(backend, threads=1)
+        plan = phyfft.batch_fft(3, 60)
+        x = rng.standard_normal((3, 60)) + 1j * rng.standard_normal((3, 60))
+        plan.input[...] = x
+        out = phyfft.aligned_empty((3, 60))
+        np.testing.assert_allclose(plan.execute(out=out), np.fft.fft(x), atol=1e-12)
+        np.testing.assert_allclose(plan.execute(), np.fft.fft(x), atol=1e-12)
+    finally:
+        phyfft.set_backend(previous)
+
+
+def test_wisdom_is_saved_and_a_corrupt_file_is_ignored(tmp_path, monkeypatch):
+    monkeypatch.setenv("PHYLOC_CACHE_DIR", str(tmp_path))
+    path = phyfft.wisdom_path()
+    assert path.parent == tmp_path
+    path.write_text("not json")
+    monkeypatch.setitem(phyfft._state, "wisdom_loaded", False)
+    phyfft.BatchFFT(2, 48)  # plans despite the corrupt file, then saves fresh wisdom
+    data = json.loads(path.read_text())
+    assert any("fftw" in w for w in data["wisdom"])
+
+
+def test_bad_backend_settings():
+    with pytest.raises(ValidationError, match="fft.backend = cufft"):
+        phyfft.set_backend("cufft")
+    with pytest.raises(ValidationError, match="planner_effort"):
+        phyfft.set_backend("scipy", planner_effort="FFTW_FAST")
+
+
+def test_odd_length_rows_into_a_misaligned_output(rng):
+    plan = phyfft.batch_fft(2, 75)  # 75·16 bytes per row: the second row is not SIMD-aligned
+    x = rng.standard_normal((2, 75)) + 1j * rng.standard_normal((2, 75))
+    plan.input[...] = x
+    big = phyfft.aligned_empty((5, 75))
+    np.testing.assert_allclose(plan.execute(out=big[1:3]), np.fft.fft(x), atol=1e-12)
+    np.testing.assert_allclose(big[1:3], np.fft.fft(x), atol=1e-12)
