@@ -52,7 +52,7 @@ def test_wisdom_is_saved_and_a_corrupt_file_is_ignored(tmp_path, monkeypatch):
 
 
 def test_bad_backend_settings():
-    with pytest.raises(ValidationError, match="fft.backend = cufft"):
+    with pytest.raises(ValidationError, match=r"fft\.backend = cufft"):
         phyfft.set_backend("cufft")
     with pytest.raises(ValidationError, match="planner_effort"):
         phyfft.set_backend("scipy", planner_effort="FFTW_FAST")
