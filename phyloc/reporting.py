@@ -102,6 +102,8 @@ def format_table(rows, headers) -> str:
     """A plain-text table: ``rows`` are sequences of cells (numbers get 4 significant digits)."""
 
     def cell(x):
+        if x is None:
+            return ""
         if isinstance(x, (float, np.floating)):
             x = float(x)
             if x != 0 and (abs(x) >= 1e5 or abs(x) < 1e-3):

@@ -1,1 +1,43 @@
-"""phyloc.channels (see DESIGN.md)."""
+"""Channel-model sampling: LOS/NLOS, path loss, shadowing, clusters, NLOS bias (DESIGN.md).
+
+Scenarios are data: the TOML files of the project's ``channels/`` folder (shipped as
+``phyloc.scenarios``) or a user's own file, validated by :func:`load_scenario`. The sampler
+:func:`draw_links` turns a batch of link distances into :class:`~phyloc.phy.PathSet` channels
+(WINNER II D1.1.2 Sec. 4.2; DiPNet paper §II-B, §IV-A, §V-A); :func:`two_way_composite` and
+:class:`ChannelSpec` add two-way ranging. :mod:`phyloc.channels.stats` checks realized
+statistics against the tables.
+
+Examples
+--------
+>>> import numpy as np
+>>> rng = np.random.default_rng(7)
+>>> draw = draw_links("winner2_c2", np.array([10.0, 40.0, 90.0]), rng)
+>>> bool(np.allclose(draw.paths.total_power(), draw.received_power_w, rtol=1e-12))
+True
+"""
+
+from phyloc.channels.sampler import (
+    ChannelDraw,
+    ChannelSpec,
+    draw_links,
+    two_way_composite,
+)
+from phyloc.channels.scenario import (
+    DEFAULT_NLOS_BIAS_MEAN_S,
+    Scenario,
+    load_file,
+    load_scenario,
+    scenario_names,
+)
+
+__all__ = [
+    "DEFAULT_NLOS_BIAS_MEAN_S",
+    "ChannelDraw",
+    "ChannelSpec",
+    "Scenario",
+    "draw_links",
+    "load_file",
+    "load_scenario",
+    "scenario_names",
+    "two_way_composite",
+]

@@ -1,0 +1,610 @@
+"""Per-link channel draws: LOS/NLOS, path loss, shadowing, clusters, NLOS bias, phases.
+
+For every link u←v at distance d the sampler returns paths with absolute delays
+``τ_l = d/c0 + b + δ_l`` and complex gains ``α_l = √A_l·e^{jφ_l}`` (DESIGN.md signal model;
+DiPNet paper §II-B, eq. (6)), where ``b > 0`` only in NLOS and ``δ_0 = 0`` is the LOS path,
+absent in NLOS. The path powers sum to the link-budget received power
+``P_tx − PL(d) − SF`` (:meth:`phyloc.phy.OFDMSystem.received_power_w`).
+
+WINNER II model (D1.1.2 Part I, Sec. 4.2), per link
+----------------------------------------------------
+1. Condition: LOS with probability P_LOS(d) (Table 4-7), unless forced.
+2. Path loss PL(d) and shadow-fading std σ_SF(d) (Table 4-4; see :mod:`phyloc.channels.pathloss`
+   for the device-to-device adaptation: heights, distances below the law's minimum).
+3. Large-scale parameters (step 4): one standard-normal vector ``x`` per link with the
+   tabulated cross-correlation of ``[DS, SF, K]`` (LOS) or ``[DS, SF]`` (NLOS), imposed with a
+   Cholesky factor; ``DS = 10^(μ_DS + σ_DS·x_DS)`` s, ``SF = σ_SF(d)·x_SF`` dB,
+   ``K = μ_K + σ_K·x_K`` dB. The angle spreads (ASD, ASA) are not drawn (single-antenna links
+   have no use for them), and LSPs are *not* spatially correlated across links.
+4. Cluster delays (step 5): ``τ'_n = −r_τ·DS·ln X_n``, ``X_n ~ U(0, 1]`` (eq. (4.1)), or
+   ``τ'_n ~ U(0, τ_max)`` for uniform-delay scenarios (B1 NLOS); ``τ_n = sort(τ'_n − min τ')``
+   (eq. (4.2)).
+5. Cluster powers (step 6): ``P'_n = exp(−τ_n (r_τ − 1)/(r_τ DS))·10^(−Z_n/10)`` (eq. (4.5))
+   or ``exp(−τ_n/DS)·10^(−Z_n/10)`` for uniform delays (eq. (4.6)), ``Z_n ~ N(0, ζ²)``;
+   ``P_n = P'_n / Σ P'`` (eq. (4.7)).
+6. LOS: ``K_R = 10^(K/10)``; the direct path (``δ_0 = 0``) carries ``K_R/(K_R + 1)`` and the
+   clusters are scaled by ``1/(K_R + 1)`` (eq. (4.8)); cluster delays are divided by
+   ``D(K) = 0.7705 − 0.0433K + 0.0002K² + 0.000017K³`` (eqs. (4.3)–(4.4)) with the link's own
+   K (K is limited to [−30, 40] dB inside D only, where D stays positive); powers use the
+   unscaled delays.
+7. Sub-clusters (step 11): the two strongest clusters are each split into three paths at
+   +0/5/10 ns carrying 10/20, 6/20, 4/20 of the cluster power.
+8. Every path gets an independent uniform phase. Each (sub-)cluster is one path of its
+   power (the clustered-delay-line form): the 20 rays of a WINNER II cluster differ only in
+   angle, which single-antenna links do not resolve.
+9. NLOS: no direct path and a bias ``b ~ Exp`` with mean ``nlos_bias_mean_s`` (default
+   0.3 µs, DiPNet §V-A) on every path. WINNER II gives only relative delays; the bias is
+   phyloc's addition. The first NLOS path arrives at exactly ``d/c0 + b``.
+
+Exponential model (DiPNet §IV-A, Appendix III): ``L = 1 + Poisson(L̄ − 1)`` components with
+``δ_l ~ Exp`` (mean ``excess_delay_mean_s``) and i.i.d. exponential powers normalised to the
+scatter power; LOS: direct path with the fixed ratio K; NLOS: bias as above.
+AWGN: one direct path.
+
+Paths of a link are sorted by delay (the LOS path first at a tie). The random streams are
+consumed in a fixed order, so a draw depends only on the seed, the scenario and the batch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from phyloc import _validate as v
+from phyloc.channels.scenario import (
+    CONDITIONS,
+    AwgnCondition,
+    ExponentialCondition,
+    Scenario,
+    Winner2Condition,
+    load_scenario,
+)
+from phyloc.errors import ValidationError
+from phyloc.phy.paths import PathSet
+from phyloc.phy.system import C0, OFDMSystem, check_keys
+
+#: K-factor range [dB] inside the LOS delay scaling D(K) (D > 0 on it).
+K_RANGE_FOR_DELAY_SCALING_DB = (-30.0, 40.0)
+RANGING_MODES = ("one_way", "two_way")
+
+
+@dataclass(frozen=True, eq=False)
+class ChannelDraw:
+    """The channels of a batch of links.
+
+    Attributes
+    ----------
+    paths : PathSet
+        Absolute delays ``τ_l`` [s] and complex gains ``α_l`` [√W] per link. One-way:
+        ``τ_l = d/c0 + b + δ_l``. Two-way: the composite channel, ``τ ≥ 2d/c0 + b`` (round trip).
+    los : [n_links], bool
+        True for LOS links.
+    nlos_bias_s : [n_links], float64
+        NLOS bias ``b`` [s] (0 for LOS; two-way: forward + backward bias).
+    path_loss_db : [n_links], float64
+        Distance-dependent path loss [dB] (without shadowing).
+    shadowing_db : [n_links], float64
+        Shadow fading SF [dB]; the link budget uses ``PL + SF``.
+    shadowing_std_db : [n_links], float64
+        σ_SF of the link's path-loss segment [dB].
+    received_power_w : [n_links], float64
+        ``P_tx − PL − SF`` [W] = ``Σ_l |α_l|²``.
+    delay_spread_s : [n_links], float64
+        The large-scale delay spread drawn for the link [s] (WINNER II step 4; exponential
+        model: ``excess_delay_mean_s``; AWGN: 0). Not the rms spread of ``paths``.
+    k_factor_db : [n_links], float64
+        Ricean K-factor [dB] of LOS links (exponential model: the fixed ratio; AWGN: +inf);
+        NaN for NLOS links, which have no direct path.
+    distances_m : [n_links], float64
+        Link distances [m].
+    scenario : str
+        Name of the scenario drawn from.
+    ranging : {"one_way", "two_way"}
+        How ``paths`` is to be read (see above).
+    components : (ChannelDraw, ChannelDraw) or None
+        Two-way only: the forward and backward one-way draws. The per-link fields other than
+        ``los`` and ``nlos_bias_s`` are those of the backward link (whose power reaches the
+        initiator after amplify-and-forward).
+    """
+
+    paths: PathSet
+    los: np.ndarray
+    nlos_bias_s: np.ndarray
+    path_loss_db: np.ndarray
+    shadowing_db: np.ndarray
+    shadowing_std_db: np.ndarray
+    received_power_w: np.ndarray
+    delay_spread_s: np.ndarray
+    k_factor_db: np.ndarray
+    distances_m: np.ndarray
+    scenario: str
+    ranging: str = "one_way"
+    components: tuple | None = None
+
+    @property
+    def n_links(self) -> int:
+        """Number of links."""
+        return self.distances_m.size
+
+    @property
+    def ways(self) -> int:
+        """1 for one-way, 2 for two-way ranging: the LOS delay is ``ways·d/c0``."""
+        return 2 if self.ranging == "two_way" else 1
+
+    def excess_delays(self) -> np.ndarray:
+        """``τ_l − ways·d/c0`` per path [s], ``[n_paths_total]`` (includes the NLOS bias)."""
+        link = self.paths.link_index()
+        return self.paths.delays - self.ways * self.distances_m[link] / C0
+
+    def rms_delay_spread(self) -> np.ndarray:
+        """Power-weighted rms delay spread of each link's paths [s], ``[n_links]``."""
+        link = self.paths.link_index()
+        w = np.abs(self.paths.gains) ** 2
+        n = self.n_links
+        tot = np.bincount(link, w, n)
+        t = self.excess_delays()
+        m1 = np.bincount(link, w * t, n) / tot
+        m2 = np.bincount(link, w * (t - m1[link]) ** 2, n) / tot
+        return np.sqrt(m2)
+
+
+# ---------------------------------------------------------------------------------------------
+def draw_links(
+    scenario,
+    distances_m,
+    rng: np.random.Generator,
+    *,
+    system: OFDMSystem | None = None,
+    condition=None,
+    nlos_bias_mean_s: float | None = None,
+    h_tx_m=1.5,
+    h_rx_m=1.5,
+) -> ChannelDraw:
+    """Draw the multipath channels of a batch of links (one-way).
+
+    Parameters
+    ----------
+    scenario : str, os.PathLike or Scenario
+        Scenario name (``"winner2_c2"`` draws each link's condition from P_LOS(d);
+        ``"winner2_c2_los"`` / ``"_nlos"`` force it; ``"awgn"``, ``"exponential"``, ...), the
+        path of a scenario TOML file, or a loaded :class:`Scenario`.
+    distances_m : [n_links], float64
+        Link distances d [m], finite and > 0.
+    rng : numpy.random.Generator
+        Source of all randomness.
+    system : OFDMSystem, optional
+        Carrier frequency (path loss) and transmit power (link budget); default
+        ``OFDMSystem()`` (DiPNet §V-A: 5.2 GHz, 0 dBm).
+    condition : {None, "los", "nlos"} or [n_links] bool, optional
+        Force the condition of every link (a string) or of each link (True = LOS).
+        ``None`` draws it from P_LOS(d) (or uses the scenario's forced condition).
+    nlos_bias_mean_s : float, optional
+        Mean NLOS bias [s], >= 0; default: the scenario file's value (0.3 µs, DiPNet §V-A).
+    h_tx_m, h_rx_m : float or [n_links] float64
+        Antenna heights [m], > 0 (default 1.5 m, device to device). The path-loss laws use
+        ``h_BS = max`` and ``h_MS = min`` of the two.
+
+    Returns
+    -------
+    ChannelDraw
+        Paths and per-link large-scale quantities; ``paths.total_power()`` equals
+        ``received_power_w``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> draw = draw_links("winner2_c2_nlos", np.array([30.0, 80.0]), rng)
+    >>> draw.paths.n_paths.tolist(), bool(draw.los.any())
+    ([24, 24], False)
+    >>> bool(np.all(draw.paths.first_delay() == draw.distances_m / C0 + draw.nlos_bias_s))
+    True
+    """
+    scn = load_scenario(scenario)
+    d = np.atleast_1d(v.finite_array("distances_m", distances_m))
+    if d.ndim != 1:
+        raise ValidationError("distances_m", f"array of shape {d.shape}", "must be 1-D")
+    if d.size and d.min() <= 0:
+        raise ValidationError("distances_m", float(d.min()), "distances must be > 0 m")
+    if not isinstance(rng, np.random.Generator):
+        raise ValidationError(
+            "rng", type(rng).__name__, "a numpy.random.Generator, e.g. np.random.default_rng(seed)"
+        )
+    system = OFDMSystem() if system is None else system
+    if not isinstance(system, OFDMSystem):
+        raise ValidationError("system", type(system).__name__, "an OFDMSystem")
+    fc = system.carrier_frequency_hz
+    scn.check_frequency(fc)
+    n = d.size
+    h_tx = _heights("h_tx_m", h_tx_m, n)
+    h_rx = _heights("h_rx_m", h_rx_m, n)
+    h_bs, h_ms = np.maximum(h_tx, h_rx), np.minimum(h_tx, h_rx)
+    if nlos_bias_mean_s is not None:
+        nlos_bias_mean_s = v.positive("nlos_bias_mean_s", nlos_bias_mean_s, allow_zero=True)
+
+    los = _conditions(scn, condition, d, rng)
+
+    pl = np.zeros(n)
+    sf_std = np.zeros(n)
+    sf = np.zeros(n)
+    ds = np.zeros(n)
+    k_db = np.full(n, math.nan)
+    bias = np.zeros(n)
+    counts = np.zeros(n, dtype=np.int64)
+    chunks = []
+    for cond, mask in (("los", los), ("nlos", ~los)):
+        idx = np.flatnonzero(mask)
+        if idx.size == 0:
+            continue
+        par = scn.params(cond)
+        par.pathloss.check_heights(h_bs[idx], h_ms[idx])
+        pl[idx], sf_std[idx] = par.pathloss.evaluate(d[idx], fc, h_bs[idx], h_ms[idx])
+        mean_b = par.nlos_bias_mean_s if nlos_bias_mean_s is None else nlos_bias_mean_s
+        res = _DRAWERS[type(par)](par, sf_std[idx], rng)
+        sf[idx], ds[idx], k_db[idx] = res["sf_db"], res["ds_s"], res["k_db"]
+        if cond == "nlos" and mean_b > 0:
+            bias[idx] = rng.exponential(mean_b, idx.size)
+        counts[idx] = res["counts"]
+        chunks.append((idx, res))
+
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    rel = np.empty(offsets[-1])
+    frac = np.empty(offsets[-1])
+    for idx, res in chunks:
+        c = res["counts"]
+        local = np.zeros(idx.size + 1, dtype=np.int64)
+        np.cumsum(c, out=local[1:])
+        owner = np.repeat(np.arange(idx.size), c)
+        pos = offsets[idx][owner] + (np.arange(local[-1]) - local[owner])
+        rel[pos] = res["delays"]
+        frac[pos] = res["fractions"]
+    link = np.repeat(np.arange(n), counts)
+    p_rx = system.received_power_w(pl + sf) if n else np.zeros(0)
+    phase = rng.uniform(0.0, 2.0 * math.pi, offsets[-1])
+    gains = np.sqrt(frac * p_rx[link]) * np.exp(1j * phase)
+    delays = (d / C0 + bias)[link] + rel
+    return ChannelDraw(
+        paths=PathSet(delays, gains, offsets),
+        los=los,
+        nlos_bias_s=bias,
+        path_loss_db=pl,
+        shadowing_db=sf,
+        shadowing_std_db=sf_std,
+        received_power_w=np.asarray(p_rx, dtype=np.float64),
+        delay_spread_s=ds,
+        k_factor_db=k_db,
+        distances_m=d,
+        scenario=scn.name,
+    )
+
+
+def _heights(name: str, h, n: int) -> np.ndarray:
+    arr = v.finite_array(name, h)
+    if arr.ndim > 1 or (arr.ndim == 1 and arr.size != n):
+        raise ValidationError(name, f"array of shape {arr.shape}", f"a scalar or shape ({n},)")
+    if arr.size and arr.min() <= 0:
+        raise ValidationError(name, float(arr.min()), "antenna heights must be > 0 m")
+    return np.ascontiguousarray(np.broadcast_to(arr, (n,)), dtype=np.float64)
+
+
+def _conditions(scn: Scenario, condition, d: np.ndarray, rng) -> np.ndarray:
+    """LOS flag per link: forced, given, or drawn from P_LOS(d) (D1.1.2 Table 4-7)."""
+    n = d.size
+    if condition is None:
+        if scn.forced is not None:
+            return np.full(n, scn.forced == "los")
+        return rng.random(n) < scn.los_probability(d)
+    if isinstance(condition, str):
+        if condition not in CONDITIONS:
+            raise ValidationError("condition", condition, "None, 'los', 'nlos' or a bool array")
+        los = np.full(n, condition == "los")
+    else:
+        los = np.asarray(condition)
+        if los.dtype != np.bool_ or los.shape != (n,):
+            raise ValidationError(
+                "condition", f"array {los.dtype} {los.shape}", f"a bool array of shape ({n},)"
+            )
+    for cond, present in (("los", los.any()), ("nlos", (~los).any())):
+        if present:
+            if scn.forced is not None and scn.forced != cond:
+                raise ValidationError(
+                    "condition", cond, f"scenario '{scn.name}' forces {scn.forced.upper()}"
+                )
+            scn.params(cond)
+    return los
+
+
+def los_delay_scaling(k_db, coeffs) -> np.ndarray:
+    """LOS delay scaling ``D(K) = c0 + c1·K + c2·K² + c3·K³`` (WINNER II D1.1.2 eq. (4.3)).
+
+    Parameters
+    ----------
+    k_db : [n], float64
+        Ricean K-factor [dB]; limited to :data:`K_RANGE_FOR_DELAY_SCALING_DB` (where D > 0).
+    coeffs : (c0, c1, c2, c3)
+        Polynomial coefficients (WINNER II: 0.7705, −0.0433, 0.0002, 0.000017).
+
+    Returns
+    -------
+    [n], float64
+        D; cluster delays of a LOS link are ``τ_n / D`` (eq. (4.4)).
+
+    Examples
+    --------
+    >>> los_delay_scaling(np.array([7.0]), (0.7705, -0.0433, 0.0002, 0.000017)).round(3)
+    array([0.483])
+    """
+    k = np.clip(np.asarray(k_db, dtype=np.float64), *K_RANGE_FOR_DELAY_SCALING_DB)
+    c0, c1, c2, c3 = coeffs
+    return c0 + k * (c1 + k * (c2 + k * c3))
+
+
+def _draw_winner2(p: Winner2Condition, sf_std: np.ndarray, rng) -> dict:
+    """WINNER II steps 4–6 and 11 for ``n`` links of one condition (D1.1.2 eqs. (4.1)–(4.9))."""
+    n = sf_std.size
+    is_los = p.condition == "los"
+    x = rng.standard_normal((n, p.cholesky.shape[0])) @ p.cholesky.T
+    ds = 10.0 ** (p.ds_log10_mu + p.ds_log10_sigma * x[:, 0])
+    sf = sf_std * x[:, 1]
+    k_db = p.k_db_mu + p.k_db_sigma * x[:, 2] if is_los else np.full(n, math.nan)
+    nc = p.num_clusters
+    if p.delay_distribution == "exponential":
+        u = 1.0 - rng.random((n, nc))  # (0, 1]
+        tau = -p.r_tau * ds[:, None] * np.log(u)  # eq. (4.1)
+    else:
+        tau = rng.uniform(0.0, p.uniform_delay_max_s, (n, nc))
+    tau.sort(axis=1)
+    tau -= tau[:, :1]  # eq. (4.2)
+    z = p.cluster_shadowing_std_db * rng.standard_normal((n, nc))
+    if p.delay_distribution == "exponential":
+        pw = np.exp(-tau * ((p.r_tau - 1.0) / (p.r_tau * ds))[:, None] - z * (math.log(10) / 10))
+    else:
+        pw = np.exp(-tau / ds[:, None] - z * (math.log(10) / 10))  # eq. (4.6)
+    pw /= pw.sum(axis=1, keepdims=True)  # eq. (4.7)
+    if is_los:
+        kr = 10.0 ** (k_db / 10.0)
+        pw *= (1.0 / (kr + 1.0))[:, None]  # eq. (4.8)
+        tau /= los_delay_scaling(k_db, p.los_delay_scaling)[:, None]  # eq. (4.4)
+        # (the powers above used the unscaled delays, as D1.1.2 prescribes)
+    ns = p.num_split
+    if ns:
+        offs = np.asarray(p.subcluster_offsets_s)
+        fr = np.asarray(p.subcluster_fractions)
+        if ns < nc:
+            top = np.argpartition(-pw, ns - 1, axis=1)[:, :ns]
+        else:
+            top = np.broadcast_to(np.arange(nc), (n, nc))
+        rows = np.arange(n)[:, None]
+        ps, ts = pw[rows, top], tau[rows, top]
+        pw[rows, top] = ps * fr[0]
+        tau[rows, top] = ts + offs[0]
+        tau = np.hstack([tau, (ts[:, :, None] + offs[1:]).reshape(n, -1)])
+        pw = np.hstack([pw, (ps[:, :, None] * fr[1:]).reshape(n, -1)])
+    if is_los:
+        tau = np.hstack([np.zeros((n, 1)), tau])
+        pw = np.hstack([(kr / (kr + 1.0))[:, None], pw])
+    order = np.argsort(tau, axis=1, kind="stable")
+    tau = np.take_along_axis(tau, order, axis=1)
+    pw = np.take_along_axis(pw, order, axis=1)
+    return {
+        "sf_db": sf,
+        "ds_s": ds,
+        "k_db": k_db,
+        "counts": np.full(n, tau.shape[1], dtype=np.int64),
+        "delays": tau.ravel(),
+        "fractions": pw.ravel(),
+    }
+
+
+def _draw_exponential(p: ExponentialCondition, sf_std: np.ndarray, rng) -> dict:
+    """DiPNet analysis model (§IV-A): Poisson path count, Exp excess delays and powers."""
+    n = sf_std.size
+    is_los = p.condition == "los"
+    sf = sf_std * rng.standard_normal(n)
+    n_mpc = 1 + rng.poisson(p.mean_path_count - 1.0, n)
+    total = int(n_mpc.sum())
+    owner = np.repeat(np.arange(n), n_mpc)
+    start = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(n_mpc, out=start[1:])
+    rank = np.arange(total) - start[owner]  # 0 … L−1 within the link
+    # L i.i.d. Exp(μ) delays, drawn already sorted (Rényi: the k-th spacing of the order
+    # statistics is Exp(μ/(L − k))); powers are independent of delays, so this equals sorting.
+    spacing = rng.exponential(p.excess_delay_mean_s, total) / (n_mpc[owner] - rank)
+    run = np.cumsum(spacing)
+    delta = run - np.concatenate(([0.0], run))[start[:-1]][owner]
+    a = rng.exponential(1.0, total)
+    a /= np.bincount(owner, a, n)[owner]
+    if is_los:
+        kr = 10.0 ** (p.k_db / 10.0)
+        counts = n_mpc + 1
+        off = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(counts, out=off[1:])
+        scatter = np.ones(off[-1], dtype=bool)
+        scatter[off[:-1]] = False
+        tau = np.zeros(off[-1])
+        pw = np.empty(off[-1])
+        tau[scatter] = delta
+        pw[scatter] = a / (kr + 1.0)
+        pw[off[:-1]] = kr / (kr + 1.0)
+        k_db = np.full(n, p.k_db)
+    else:
+        counts, tau, pw = n_mpc, delta, a
+        k_db = np.full(n, math.nan)
+    return {
+        "sf_db": sf,
+        "ds_s": np.full(n, p.excess_delay_mean_s),
+        "k_db": k_db,
+        "counts": counts,
+        "delays": tau,
+        "fractions": pw,
+    }
+
+
+def _draw_awgn(p: AwgnCondition, sf_std: np.ndarray, rng) -> dict:
+    """A single direct path per link."""
+    n = sf_std.size
+    return {
+        "sf_db": sf_std * rng.standard_normal(n),
+        "ds_s": np.zeros(n),
+        "k_db": np.full(n, math.inf),
+        "counts": np.ones(n, dtype=np.int64),
+        "delays": np.zeros(n),
+        "fractions": np.ones(n),
+    }
+
+
+_DRAWERS = {
+    Winner2Condition: _draw_winner2,
+    ExponentialCondition: _draw_exponential,
+    AwgnCondition: _draw_awgn,
+}
+
+
+# ---------------------------------------------------------------------------------------------
+def two_way_composite(forward: PathSet, backward: PathSet) -> PathSet:
+    """Composite channel of two-way ranging: the convolution of forward and backward channels.
+
+    For every link, every pair of a forward path ``(τ_i, α_i)`` and a backward path
+    ``(τ'_j, α'_j)`` gives a composite path ``(τ_i + τ'_j, α_i·α'_j)`` (DiPNet §II-B: two-way
+    ranging is analogous to synchronized one-way ranging over the convolution of the forward
+    and backward channels).
+
+    Parameters
+    ----------
+    forward, backward : PathSet
+        One-way channels of the same ``n_links`` links.
+
+    Returns
+    -------
+    PathSet
+        ``n_paths = forward.n_paths · backward.n_paths`` per link; the pairs of link k are
+        ordered forward-major (``i`` outer, ``j`` inner).
+
+    Examples
+    --------
+    >>> f = PathSet.from_lists([[1.0, 2.0]], [[1.0, 0.5]])
+    >>> b = PathSet.from_lists([[10.0]], [[2.0j]])
+    >>> c = two_way_composite(f, b)
+    >>> c.delays.tolist(), c.gains.tolist()
+    ([11.0, 12.0], [2j, 1j])
+    """
+    if not isinstance(forward, PathSet) or not isinstance(backward, PathSet):
+        raise ValidationError("forward/backward", type(forward).__name__, "two PathSet objects")
+    if forward.n_links != backward.n_links:
+        raise ValidationError(
+            "backward", f"{backward.n_links} links", f"must match forward ({forward.n_links})"
+        )
+    n = forward.n_links
+    nf, nb = forward.n_paths, backward.n_paths
+    cnt = nf * nb
+    off = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(cnt, out=off[1:])
+    link = np.repeat(np.arange(n), cnt)
+    k = np.arange(off[-1]) - off[link]
+    nbl = nb[link]
+    fi = forward.offsets[link] + k // nbl
+    bj = backward.offsets[link] + k % nbl
+    delays = forward.delays[fi] + backward.delays[bj]
+    return PathSet(delays, forward.gains[fi] * backward.gains[bj], off)
+
+
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ChannelSpec:
+    """The ``[channel]`` section of a recipe.
+
+    Parameters
+    ----------
+    scenario : str
+        Scenario name or path of a scenario file (:func:`~phyloc.channels.scenario_names`).
+        Default ``"winner2_c2"``.
+    ranging : {"one_way", "two_way"}
+        Synchronized one-way ranging (default) or two-way ranging (composite channel,
+        DiPNet §II-B).
+    nlos_bias_mean_s : float or None
+        Mean NLOS bias [s] (>= 0); ``None`` uses the scenario file's value.
+    h_tx_m, h_rx_m : float
+        Antenna heights [m] (> 0), default 1.5 m.
+    condition : {None, "los", "nlos"}
+        Force every link's condition; ``None`` draws it from P_LOS(d).
+    """
+
+    scenario: str = "winner2_c2"
+    ranging: str = "one_way"
+    nlos_bias_mean_s: float | None = None
+    h_tx_m: float = 1.5
+    h_rx_m: float = 1.5
+    condition: str | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.scenario, str):
+            raise ValidationError("channel.scenario", self.scenario, "a scenario name or path")
+        if self.ranging not in RANGING_MODES:
+            raise ValidationError("channel.ranging", self.ranging, "'one_way' or 'two_way'")
+        if self.nlos_bias_mean_s is not None:
+            object.__setattr__(
+                self,
+                "nlos_bias_mean_s",
+                v.positive("channel.nlos_bias_mean_s", self.nlos_bias_mean_s, allow_zero=True),
+            )
+        object.__setattr__(self, "h_tx_m", v.positive("channel.h_tx_m", self.h_tx_m))
+        object.__setattr__(self, "h_rx_m", v.positive("channel.h_rx_m", self.h_rx_m))
+        if self.condition is not None and self.condition not in CONDITIONS:
+            raise ValidationError("channel.condition", self.condition, "'los', 'nlos' or absent")
+        scn = self.load()
+        if self.condition is not None:
+            _conditions(scn, self.condition, np.ones(1), None)
+
+    def load(self) -> Scenario:
+        """The validated :class:`Scenario`."""
+        return load_scenario(self.scenario)
+
+    @classmethod
+    def from_dict(cls, d: dict, *, section: str = "channel") -> ChannelSpec:
+        """Build from a recipe section; unknown keys name the closest valid key."""
+        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        return cls(**d)
+
+    def to_dict(self) -> dict:
+        """The fields as a plain dict (``None`` entries dropped: TOML has no null)."""
+        return {
+            f.name: getattr(self, f.name)
+            for f in dataclasses.fields(self)
+            if getattr(self, f.name) is not None
+        }
+
+    def draw(self, distances_m, rng: np.random.Generator, *, system=None) -> ChannelDraw:
+        """Draw the channels of a batch of links.
+
+        One-way: :func:`draw_links`. Two-way: the condition is drawn once per link (it is a
+        property of the geometry), then the forward and backward channels are drawn
+        independently given it. The responder amplifies and forwards what it receives at its
+        transmit power, so the forward gains are normalised by ``√P_forward`` and the
+        composite ``two_way_composite(forward/√P_f, backward)`` carries exactly the backward
+        received power. Delays are round-trip: ``τ ≥ 2d/c0 + b_f + b_b``.
+        """
+        kw = dict(
+            system=system,
+            nlos_bias_mean_s=self.nlos_bias_mean_s,
+            h_tx_m=self.h_tx_m,
+            h_rx_m=self.h_rx_m,
+        )
+        scn = self.load()
+        fwd = draw_links(scn, distances_m, rng, condition=self.condition, **kw)
+        if self.ranging == "one_way":
+            return fwd
+        kw["h_tx_m"], kw["h_rx_m"] = self.h_rx_m, self.h_tx_m
+        bwd = draw_links(scn, fwd.distances_m, rng, condition=fwd.los, **kw)
+        p = fwd.paths
+        scale = 1.0 / np.sqrt(fwd.received_power_w)[p.link_index()]
+        relay = PathSet(p.delays, p.gains * scale, p.offsets)
+        return dataclasses.replace(
+            bwd,
+            paths=two_way_composite(relay, bwd.paths),
+            nlos_bias_s=fwd.nlos_bias_s + bwd.nlos_bias_s,
+            ranging="two_way",
+            components=(fwd, bwd),
+        )

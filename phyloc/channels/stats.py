@@ -1,0 +1,268 @@
+"""Realized channel statistics against the scenario tables (``phyloc channel-stats``).
+
+:func:`channel_stats` draws links between points uniform in a square and compares what the
+sampler produced with the numbers of the scenario file. Figure names (stable, part of the
+public interface; a figure is omitted when its condition has no links in the draw):
+
+=============================  ===============================================================
+``los_fraction``               fraction of LOS links
+``los_fraction_table``         mean of P_LOS(d) over the same distances (Table 4-7)
+``ds_log10_mean_los``          mean of log10(DS / 1 s) over LOS links (the drawn LSP)
+``ds_log10_std_los``           its std; ``*_nlos`` the same over NLOS links
+``rms_ds_log10_mean_los``      mean of log10 of the rms delay spread of the generated paths
+                               (``*_nlos`` likewise); WINNER II does not make this equal DS
+``k_factor_db_mean``           mean of the K-factor [dB] over LOS links
+``k_factor_db_std``            its std
+``sf_std_db_los``              std of the shadow fading [dB] over LOS links (``*_nlos``)
+``path_count_mean``            mean number of paths per link
+``excess_delay_mean_s``        mean over links of the power-weighted mean of ``τ_l − d/c0`` [s]
+                               (includes the NLOS bias)
+``nlos_bias_mean_s``           mean NLOS bias over NLOS links [s]
+``distance_mean_m``            mean link distance [m]
+=============================  ===============================================================
+
+Each figure with a table value has a twin ``<name>_table``. Table values: DS and K from
+Table 4-5 (μ, σ); SF: ``sqrt(mean σ_SF(d)²)`` over the drawn links (the law's segment std,
+Table 4-4); path count: the expected count given ``los_fraction_table``; NLOS bias: the file's
+mean. Series: ``distance_bin_m``, ``los_fraction_by_distance``, ``los_probability_by_distance``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from phyloc import _validate as v
+from phyloc.channels.sampler import ChannelDraw, draw_links
+from phyloc.channels.scenario import (
+    AwgnCondition,
+    ExponentialCondition,
+    Winner2Condition,
+    load_scenario,
+)
+from phyloc.errors import ValidationError
+
+
+def square_pair_distances(n_links: int, side_m: float, rng: np.random.Generator) -> np.ndarray:
+    """Distances between pairs of points drawn uniformly in a ``side_m × side_m`` square.
+
+    Returns ``[n_links]`` float64 [m]; values below 1 mm (probability ~1e-10) are raised to
+    1 mm so that every distance is > 0.
+    """
+    n = v.integer("n_links", n_links, minimum=1)
+    side = v.positive("square_m", side_m)
+    p = rng.uniform(0.0, side, (n, 2, 2))
+    return np.maximum(np.hypot(*(p[:, 0] - p[:, 1]).T), 1e-3)
+
+
+def _expected_paths(par) -> float:
+    if isinstance(par, Winner2Condition):
+        return float(par.paths_per_link)
+    if isinstance(par, ExponentialCondition):
+        return par.mean_path_count + (par.condition == "los")
+    if isinstance(par, AwgnCondition):
+        return 1.0
+    return math.nan
+
+
+def channel_stats(
+    scenario,
+    *,
+    square_m: float = 100.0,
+    n_links: int = 20000,
+    rng: np.random.Generator,
+    system=None,
+    png_path=None,
+) -> dict:
+    """Draw links in a square and compare realized statistics with the scenario tables.
+
+    Parameters
+    ----------
+    scenario : str, os.PathLike or Scenario
+        As for :func:`~phyloc.channels.draw_links`.
+    square_m : float
+        Side of the square the link end points are drawn in [m] (default 100 m, DiPNet §V-A).
+    n_links : int
+        Number of links (>= 1).
+    rng : numpy.random.Generator
+        Source of randomness.
+    system : OFDMSystem, optional
+        Carrier frequency and transmit power (default ``OFDMSystem()``).
+    png_path : str or Path, optional
+        If given, also write example power-delay profiles of this draw there
+        (:func:`plot_power_delay_profiles`).
+
+    Returns
+    -------
+    dict
+        ``{"figures": {name: float}, "series": {name: list}, "table": [(quantity, realized,
+        table value or None), ...], "draw": ChannelDraw}`` (names: module docstring).
+        Everything but ``"draw"`` (the links drawn, for :func:`plot_power_delay_profiles`)
+        is plain Python and JSON-serializable.
+
+    Examples
+    --------
+    >>> out = channel_stats("winner2_d1", n_links=2000, rng=np.random.default_rng(3))
+    >>> 0.9 < out["figures"]["los_fraction"] <= 1.0
+    True
+    """
+    scn = load_scenario(scenario)
+    if not isinstance(rng, np.random.Generator):
+        raise ValidationError("rng", type(rng).__name__, "a numpy.random.Generator")
+    d = square_pair_distances(n_links, square_m, rng)
+    draw = draw_links(scn, d, rng, system=system)
+    fig: dict[str, float] = {}
+    rows: list[tuple[str, float, float | None]] = []
+
+    def put(name: str, label: str, realized, table=None):
+        fig[name] = float(realized)
+        if table is not None and np.isfinite(table):
+            fig[name + "_table"] = float(table)
+            rows.append((label, float(realized), float(table)))
+        else:
+            rows.append((label, float(realized), None))
+
+    p_los = scn.p_los(d)
+    put("distance_mean_m", "link distance mean [m]", d.mean())
+    put("los_fraction", "LOS fraction", draw.los.mean(), p_los.mean())
+    rms = draw.rms_delay_spread()
+    for cond, mask in (("los", draw.los), ("nlos", ~draw.los)):
+        if not mask.any():
+            continue
+        par = scn.params(cond)
+        w2 = isinstance(par, Winner2Condition)
+        ex = isinstance(par, ExponentialCondition)
+        if w2 or ex:
+            lg = np.log10(draw.delay_spread_s[mask])
+            mu = par.ds_log10_mu if w2 else math.log10(par.excess_delay_mean_s)
+            sd = par.ds_log10_sigma if w2 else 0.0
+            put(f"ds_log10_mean_{cond}", f"log10 DS [s] mean, {cond.upper()}", lg.mean(), mu)
+            put(
+                f"ds_log10_std_{cond}",
+                f"log10 DS [s] std, {cond.upper()}",
+                lg.std(ddof=1) if mask.sum() > 1 else 0.0,
+                sd,
+            )
+            ok = mask & (rms > 0)
+            if ok.any():
+                put(
+                    f"rms_ds_log10_mean_{cond}",
+                    f"log10 rms delay spread of paths [s] mean, {cond.upper()}",
+                    np.log10(rms[ok]).mean(),
+                )
+        sf = draw.shadowing_db[mask]
+        put(
+            f"sf_std_db_{cond}",
+            f"shadow fading std [dB], {cond.upper()}",
+            sf.std(ddof=1) if sf.size > 1 else 0.0,
+            math.sqrt(np.mean(draw.shadowing_std_db[mask] ** 2)),
+        )
+        if cond == "los" and (w2 or ex):
+            k = draw.k_factor_db[mask]
+            put("k_factor_db_mean", "K-factor [dB] mean", k.mean(), par.k_db_mu if w2 else par.k_db)
+            put(
+                "k_factor_db_std",
+                "K-factor [dB] std",
+                k.std(ddof=1) if k.size > 1 else 0.0,
+                par.k_db_sigma if w2 else 0.0,
+            )
+        if cond == "nlos":
+            put(
+                "nlos_bias_mean_s",
+                "NLOS bias mean [s]",
+                draw.nlos_bias_s[mask].mean(),
+                par.nlos_bias_mean_s,
+            )
+    pf = float(p_los.mean())
+    expected = 0.0
+    for cond, weight in (("los", pf), ("nlos", 1.0 - pf)):
+        if weight > 0:
+            expected += weight * _expected_paths(scn.params(cond))
+    put("path_count_mean", "paths per link mean", draw.paths.n_paths.mean(), expected)
+    link = draw.paths.link_index()
+    pw = np.abs(draw.paths.gains) ** 2
+    mean_exc = np.bincount(link, pw * draw.excess_delays(), draw.n_links) / draw.received_power_w
+    put("excess_delay_mean_s", "power-weighted excess delay mean [s]", mean_exc.mean())
+
+    edges = np.linspace(0.0, float(d.max()) * (1 + 1e-12), 21)
+    which = np.digitize(d, edges) - 1
+    cnt = np.bincount(which, minlength=20)[:20]
+    los_cnt = np.bincount(which, weights=draw.los.astype(float), minlength=20)[:20]
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    keep = cnt > 0
+    series = {
+        "distance_bin_m": centres[keep].tolist(),
+        "los_fraction_by_distance": (los_cnt[keep] / cnt[keep]).tolist(),
+        "los_probability_by_distance": scn.p_los(centres[keep]).tolist(),
+    }
+    if png_path is not None:
+        plot_power_delay_profiles(draw, png_path)
+    return {"figures": fig, "series": series, "table": rows, "draw": draw}
+
+
+def plot_power_delay_profiles(draw: ChannelDraw, path_png, n_examples: int = 6) -> Path:
+    """Write a PNG with example power-delay profiles of a draw.
+
+    One panel per link: path powers relative to the link's received power [dB] against the
+    excess delay ``τ_l − d/c0`` [ns] (NLOS bias included, marked by a dashed line). Links are
+    picked half LOS, half NLOS where both exist. Uses matplotlib's Agg canvas (no pyplot, no
+    global backend change).
+
+    Parameters
+    ----------
+    draw : ChannelDraw
+    path_png : str or Path
+        Output file.
+    n_examples : int
+        Number of panels (>= 1).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    n_ex = v.integer("n_examples", n_examples, minimum=1)
+    los_idx = np.flatnonzero(draw.los)
+    nlos_idx = np.flatnonzero(~draw.los)
+    half = n_ex // 2
+    picks = list(los_idx[: max(n_ex - min(half, nlos_idx.size), 0)])
+    picks += list(nlos_idx[: n_ex - len(picks)])
+    picks = picks[:n_ex]
+    cols = min(3, max(len(picks), 1))
+    rows = max(math.ceil(len(picks) / cols), 1)
+    fig = Figure(figsize=(4.2 * cols, 3.0 * rows), constrained_layout=True)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    exc = draw.excess_delays()
+    for ax, i in zip(axes, picks, strict=False):
+        a, b = draw.paths.offsets[i], draw.paths.offsets[i + 1]
+        p_db = 10 * np.log10(np.abs(draw.paths.gains[a:b]) ** 2 / draw.received_power_w[i])
+        t_ns = exc[a:b] * 1e9
+        color = "tab:blue" if draw.los[i] else "tab:red"
+        ax.vlines(t_ns, -60.0, p_db, color=color, lw=1.2)
+        ax.plot(t_ns, p_db, "o", ms=3, color=color)
+        if not draw.los[i]:
+            ax.axvline(draw.nlos_bias_s[i] * 1e9, ls="--", color="0.4", lw=0.8, label="bias b")
+            ax.legend(loc="upper right", fontsize=7)
+        ax.set_ylim(-50.0, 3.0)
+        ax.set_xlabel("excess delay τ − d/c0 [ns]")
+        ax.set_ylabel("power / P_rx [dB]")
+        cond = "LOS" if draw.los[i] else "NLOS"
+        ax.set_title(
+            f"link {i}: d = {draw.distances_m[i]:.1f} m, {cond}, {b - a} paths", fontsize=9
+        )
+        ax.grid(alpha=0.3)
+    for ax in axes[len(picks) :]:
+        ax.set_visible(False)
+    fig.suptitle(f"Power-delay profiles — {draw.scenario} ({draw.ranging})", fontsize=10)
+    out = Path(path_png)
+    fig.savefig(out, dpi=110)
+    return out
+
+
+__all__ = ["channel_stats", "plot_power_delay_profiles", "square_pair_distances"]
