@@ -90,6 +90,10 @@ class CorrelationTable:
     symbol_moment2 : [n_links], float64
         ``Σ_n |S_n|² n²`` (enters the CRB, eq. (24), and the ENV, eq. (26)).
     system : OFDMSystem
+    symbols : [n_tx, N], complex128
+        The pilot symbols the tables were built with.
+    tx_index : [n_links], int64
+        Row of ``symbols`` of each link (``symbols[tx_index[i]]`` are link i's pilots).
     """
 
     values: np.ndarray
@@ -99,6 +103,8 @@ class CorrelationTable:
     symbol_energy: np.ndarray
     symbol_moment2: np.ndarray
     system: OFDMSystem
+    symbols: np.ndarray
+    tx_index: np.ndarray
 
     # -- geometry of the grid ------------------------------------------------------------------
     @property
@@ -249,6 +255,25 @@ class CorrelationTable:
         )
         return out
 
+    def pilots(self, link: int) -> np.ndarray:
+        """The pilot symbols ``S_n`` of one link, ``[N]`` complex128."""
+        return self.symbols[self.tx_index[link]]
+
+    def select(self, links) -> CorrelationTable:
+        """The tables of a subset of links (in the given order)."""
+        idx = np.asarray(links, dtype=np.int64)
+        return CorrelationTable(
+            values=self.values[idx],
+            spectrum=self.spectrum[idx],
+            spacing_m=self.spacing_m,
+            noise_var=self.noise_var[idx],
+            symbol_energy=self.symbol_energy[idx],
+            symbol_moment2=self.symbol_moment2[idx],
+            system=self.system,
+            symbols=self.symbols,
+            tx_index=self.tx_index[idx],
+        )
+
     def interpolation_error_bound(self, interpolation="cubic") -> np.ndarray:
         """Per-link bound on ``|evaluate(d) − exact(d)|`` [√W], ``[n_links]`` (module docstring)."""
         p = interpolation_order(interpolation)
@@ -347,4 +372,6 @@ def correlation_tables(
         symbol_energy=energy,
         symbol_moment2=moment2,
         system=system,
+        symbols=S,
+        tx_index=tx,
     )
