@@ -1,0 +1,124 @@
+"""Recipes: TOML files describing a system, a network, a channel and what to run.
+
+A recipe is read with :func:`load_recipe`, which checks every key before any work starts:
+unknown keys are errors that name the key and the closest valid one, wrong types and
+impossible values name the key, the value and what is allowed. The common sections map to
+frozen dataclasses (``[system]`` → :class:`~phyloc.phy.OFDMSystem`, ``[channel]`` →
+:class:`~phyloc.channels.ChannelSpec`); ``[network]`` and the experiment's own sections are
+validated by their consumers' ``from_dict`` through :meth:`Recipe.section`.
+
+Top-level keys
+    ``kind``  what the recipe runs: ``"ranging"`` (ranging RMSE versus bounds, DiPNet Fig. 4);
+    ``name``  a short identifier (results folder name, figure prefixes);
+    ``seed``  the one seed of all randomness (per-task streams come from ``SeedSequence.spawn``);
+    ``description``  free text.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from phyloc.errors import PhylocError, ValidationError
+from phyloc.phy.system import OFDMSystem, check_keys
+
+KINDS = ("ranging",)
+TOP_LEVEL = ("kind", "name", "seed", "description")
+SECTIONS = ("system", "network", "channel", "ranging", "experiment", "localization", "dataset")
+
+
+class RecipeError(PhylocError):
+    """A recipe cannot be read (missing file, TOML syntax)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Recipe:
+    """A validated recipe.
+
+    Attributes
+    ----------
+    kind, name : str
+    seed : int
+    system : OFDMSystem
+    sections : dict[str, dict]
+        The raw tables of the other sections (validated by :meth:`section`).
+    text : str
+        The recipe's TOML text (stored with every result and dataset).
+    path : Path or None
+    """
+
+    kind: str
+    name: str
+    seed: int
+    system: OFDMSystem
+    sections: dict = field(default_factory=dict)
+    text: str = ""
+    path: Path | None = None
+    description: str = ""
+
+    def section(self, name: str, spec_cls=None, *, required: bool = False):
+        """The table ``[name]`` (``{}`` when absent), or ``spec_cls.from_dict`` of it."""
+        if name not in self.sections and required:
+            raise ValidationError(name, "missing", f"recipe section [{name}] is required")
+        raw = self.sections.get(name, {})
+        if spec_cls is None:
+            return raw
+        try:
+            return spec_cls.from_dict(raw)
+        except ValidationError as exc:
+            if exc.field.startswith(name):
+                raise
+            raise ValidationError(f"{name}.{exc.field}", exc.value, exc.allowed) from None
+
+
+def load_recipe(source) -> Recipe:
+    """Read and validate a recipe from a path (or from TOML text starting with a newline or
+    containing ``=``)."""
+    path = None
+    if isinstance(source, Path) or (isinstance(source, str) and "=" not in source):
+        path = Path(source)
+        if not path.is_file():
+            raise RecipeError(f"recipe {path} does not exist (give the path of a TOML file)")
+        text = path.read_text()
+    else:
+        text = str(source)
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        where = f"{path}: " if path else ""
+        raise RecipeError(f"{where}invalid TOML: {exc}") from None
+    return parse_recipe(doc, text=text, path=path)
+
+
+def parse_recipe(doc: dict, *, text: str = "", path: Path | None = None) -> Recipe:
+    """Validate a parsed recipe document."""
+    check_keys(doc, [*TOP_LEVEL, *SECTIONS], "recipe")
+    kind = doc.get("kind")
+    if kind not in KINDS:
+        raise ValidationError("kind", kind, f"one of {', '.join(KINDS)}")
+    name = doc.get("name", path.stem if path else "recipe")
+    if not isinstance(name, str) or not name or any(c in name for c in "/\\ "):
+        raise ValidationError("name", name, "a non-empty string without spaces or slashes")
+    seed = doc.get("seed")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ValidationError("seed", seed, "a non-negative integer is required")
+    for s in SECTIONS:
+        if s in doc and not isinstance(doc[s], dict):
+            raise ValidationError(s, doc[s], f"[{s}] must be a table")
+    system_doc = doc.get("system", {})
+    try:
+        system = OFDMSystem.from_dict(system_doc)
+    except TypeError as exc:  # pragma: no cover - from_dict checks keys first
+        raise ValidationError("system", system_doc, str(exc)) from None
+    sections = {s: doc[s] for s in SECTIONS if s in doc and s != "system"}
+    return Recipe(
+        kind=kind,
+        name=name,
+        seed=seed,
+        system=system,
+        sections=sections,
+        text=text,
+        path=path,
+        description=str(doc.get("description", "")),
+    )
