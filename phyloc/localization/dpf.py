@@ -1,0 +1,420 @@
+"""The equivalent-likelihood distributed particle filter: DiPNet and its two-step twin.
+
+One filter, two likelihoods (:mod:`phyloc.localization.likelihoods`): with
+:class:`~phyloc.localization.likelihoods.DirectLikelihood` it is DiPNet (Algorithm 1 of the
+DiPNet paper), with :class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood` it is the
+two-step EL-DPF fed by a range estimator. Every agent runs in parallel:
+
+1. draw Q particles from its prior (Algorithm 1, line 3);
+2. for k = 1 … K: receive the neighbours' published means and covariances (line 5), compute
+   the ENV/ERV per link (line 6), weight the particles (eq. (28), line 8; log domain,
+   normalized with log-sum-exp, line 9) and publish the new mean and covariance (line 10).
+
+The paper stops there (``DPFOptions.published()``). Run as published from uninformative
+priors, the weights collapse after the first informative link (effective sample size ≈ 1), the
+published covariance is ≈ 0 and eq. (26) then treats neighbours as exact anchors. phyloc's
+default adds three safeguards, each an option:
+
+``tempering``      the log-likelihood is multiplied by γ_k ≤ 1 over the first iterations;
+``resample_move``  after weighting, systematic resampling and Metropolis–Hastings moves that
+                   leave the current target ``prior(x)·exp(γ_k Σ_v log p̃)`` invariant
+                   (regularization by Gaussian random-walk proposals scaled to the cloud);
+                   the next iteration then reweights by the change of the target only;
+``cov_floor_m``    the published covariance is at least ``max(floor², CRB_u/dim)·I`` where
+                   CRB_u is the agent's position CRB from its links' ranging information
+                   (EFIM, eq. (13)) at the current means.
+
+Weights stay in the log domain; an agent whose weights are all ``−inf`` or NaN (an empty
+likelihood) falls back to uniform weights and is counted in ``n_degenerate``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import logsumexp
+
+from phyloc import _validate as v
+from phyloc.errors import ValidationError
+from phyloc.localization import _kernels as K
+from phyloc.localization.likelihoods import projected_variances
+from phyloc.phy.system import check_keys
+
+
+@dataclass(frozen=True)
+class DPFOptions:
+    """Options of the EL-DPF (defaults: phyloc's safeguarded DiPNet).
+
+    Parameters
+    ----------
+    n_particles : int
+        Q per agent (DiPNet §V-A: 1000).
+    n_iterations : int
+        K message-passing iterations.
+    tempering : tuple of float
+        Fixed γ_k for k = 1, 2, … (last value repeats) of the filter *without* resample-move.
+        ``(1.0,)`` is the published algorithm.
+    resample_move : bool
+        Safeguarded filter: every iteration moves the particles from the previous target to
+        the new one by adaptive likelihood tempering (steps keeping ESS >= ``ess_fraction``·Q),
+        systematic resampling and Metropolis–Hastings moves (needs an evaluable prior).
+    ess_fraction : float
+        Target ESS fraction of each tempering step.
+    max_annealing_steps : int
+        Upper bound of tempering steps per iteration (the last one jumps to λ = 1).
+    n_moves : int
+        Metropolis–Hastings sweeps per iteration.
+    move_scale : float
+        Proposal std as a fraction of the cloud's per-axis std.
+    cov_floor_m : float
+        Minimum published std per axis [m]; 0 disables the floor (and the CRB term).
+    interpolation : str
+        Correlation-table interpolation (direct likelihood).
+    """
+
+    n_particles: int = 1000
+    n_iterations: int = 8
+    tempering: tuple = (1.0,)
+    resample_move: bool = True
+    ess_fraction: float = 0.5
+    max_annealing_steps: int = 60
+    n_moves: int = 2
+    move_scale: float = 0.5
+    cov_floor_m: float = 0.05
+    interpolation: str = "cubic"
+
+    def __post_init__(self):
+        v.integer("n_particles", self.n_particles, minimum=1)
+        v.integer("n_iterations", self.n_iterations, minimum=1)
+        temp = tuple(float(g) for g in np.atleast_1d(self.tempering))
+        if not temp or any(not (0 < g <= 1) for g in temp):
+            raise ValidationError("tempering", self.tempering, "values in (0, 1]")
+        object.__setattr__(self, "tempering", temp)
+        v.integer("n_moves", self.n_moves, minimum=0)
+        if not 0 < float(self.ess_fraction) < 1:
+            raise ValidationError("ess_fraction", self.ess_fraction, "in (0, 1)")
+        v.integer("max_annealing_steps", self.max_annealing_steps, minimum=1)
+        v.positive("move_scale", self.move_scale)
+        v.positive("cov_floor_m", self.cov_floor_m, allow_zero=True)
+        if self.interpolation not in ("linear", "cubic", "quintic"):
+            raise ValidationError("interpolation", self.interpolation, "linear, cubic or quintic")
+
+    @classmethod
+    def published(cls, **kw) -> DPFOptions:
+        """Algorithm 1 as published: no tempering, no resample-move, no covariance floor."""
+        base = {"tempering": (1.0,), "resample_move": False, "cov_floor_m": 0.0}
+        return cls(**{**base, **kw})
+
+    @classmethod
+    def from_dict(cls, d: dict, section: str = "localization") -> DPFOptions:
+        """From a recipe table (unknown keys are errors)."""
+        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        return cls(**d)
+
+    def gamma(self, k: int) -> float:
+        """Tempering exponent of iteration k (1-based)."""
+        return self.tempering[min(k, len(self.tempering)) - 1]
+
+
+@dataclass(frozen=True)
+class Prior:
+    """Per-agent prior: particles drawn from it and its log density (for MH moves).
+
+    ``log_density(x [n_agents, Q, dim]) -> [n_agents, Q]`` may return −inf outside a support;
+    None means the prior cannot be evaluated (resample-move is then skipped).
+    ``label`` names the initialization in every output (e.g. ``"informed start"``).
+    """
+
+    particles: np.ndarray
+    log_density: object = None
+    label: str = "truth-free"
+
+
+@dataclass(frozen=True, eq=False)
+class DPFResult:
+    """Output of :func:`run_dpf` for one snapshot.
+
+    Attributes
+    ----------
+    means : [n_nodes, dim]  final estimates (anchors: their known positions)
+    covs : [n_nodes, dim, dim]  published covariances (anchors: 0)
+    mean_history : [K + 1, n_nodes, dim]  published means after each iteration (0 = prior)
+    cov_trace_history : [K + 1, n_agents]  trace of the published covariances
+    ess_history : [K, n_agents]  effective sample size after weighting
+    particles, log_weights : [n_agents, Q, dim], [n_agents, Q]  final belief
+    n_degenerate : int  weight vectors that fell back to uniform
+    annealing_steps : int  tempering steps taken by the safeguarded filter (0 when published)
+    seconds : float  wall time; ``agent_iterations`` = n_agents·K
+    label : str  the initialization label
+    """
+
+    means: np.ndarray
+    covs: np.ndarray
+    mean_history: np.ndarray
+    cov_trace_history: np.ndarray
+    ess_history: np.ndarray
+    particles: np.ndarray
+    log_weights: np.ndarray
+    n_degenerate: int
+    seconds: float
+    agent_iterations: int
+    label: str
+    annealing_steps: int = 0
+
+
+def _normalize(lw) -> tuple[np.ndarray, int]:
+    """Normalize log weights per agent; rows without a finite weight become uniform."""
+    lse = logsumexp(lw, axis=1, keepdims=True)
+    bad = ~np.isfinite(lse[:, 0])
+    out = lw - lse
+    if bad.any():
+        out[bad] = -np.log(lw.shape[1])
+    out[~np.isfinite(out)] = -np.inf
+    return out, int(bad.sum())
+
+
+def _moments(particles, lw):
+    w = np.exp(lw)
+    mean = np.einsum("aq,aqd->ad", w, particles)
+    dev = particles - mean[:, None, :]
+    cov = np.einsum("aq,aqi,aqj->aij", w, dev, dev)
+    return mean, cov
+
+
+def _ess(lw) -> np.ndarray:
+    w = np.exp(lw)
+    return 1.0 / np.sum(w * w, axis=1)
+
+
+def _floor(cov, likelihood, centers, agent_nodes, floor_m):
+    """Add the covariance floor: max(floor², CRB_u/dim) per axis (EFIM of eq. (13))."""
+    if floor_m <= 0:
+        return cov
+    dim = cov.shape[1]
+    csr = likelihood.csr
+    out = cov.copy()
+    for a in range(cov.shape[0]):
+        j0, j1 = csr.offsets[a], csr.offsets[a + 1]
+        crb = 0.0  # no links, or links that leave a direction undetermined: no CRB term
+        if j1 > j0:
+            diff = centers[csr.rx[j0:j1]] - centers[csr.tx[j0:j1]]
+            n = np.linalg.norm(diff, axis=1)
+            ok = n > 1e-12
+            e = diff[ok] / n[ok, None]
+            J = np.einsum("l,li,lj->ij", likelihood.nu[j0:j1][ok], e, e)
+            ev = np.linalg.eigvalsh(J)
+            if ev.size and ev.min() > 1e-12 * max(ev.max(), 1e-300):
+                crb = float(np.sum(1.0 / ev)) / dim
+        # the CRB term only raises the floor where the links determine the position
+        var = max(floor_m**2, crb if np.isfinite(crb) else 0.0)
+        eig = np.linalg.eigvalsh(out[a])
+        if eig.min() < var:
+            out[a] += (var - min(eig.min(), var)) * np.eye(dim)
+    return out
+
+
+def run_dpf(
+    likelihood,
+    prior: Prior,
+    positions,
+    is_anchor,
+    rng: np.random.Generator,
+    options: DPFOptions = DPFOptions(),
+) -> DPFResult:
+    """Run the EL-DPF on one snapshot (DiPNet Algorithm 1 with optional safeguards).
+
+    Parameters
+    ----------
+    likelihood : DirectLikelihood or GaussianRangeLikelihood
+    prior : Prior
+        ``particles [n_agents, Q, dim]`` drawn from each agent's prior.
+    positions : [n_nodes, dim]
+        Known positions; only the anchors' rows are read (agents' rows are ignored).
+    is_anchor : [n_nodes] bool
+    rng : numpy.random.Generator
+    options : DPFOptions
+    """
+    t0 = time.perf_counter()
+    is_anchor = np.asarray(is_anchor, bool)
+    positions = np.asarray(positions, dtype=np.float64)
+    agent_nodes = np.flatnonzero(~is_anchor)
+    X = np.array(prior.particles, dtype=np.float64, copy=True)
+    if X.ndim != 3:
+        raise ValidationError("prior.particles", f"shape {X.shape}", "[n_agents, Q, dim]")
+    n_agents, Q, dim = X.shape
+    if n_agents != agent_nodes.size:
+        raise ValidationError("prior.particles", f"{n_agents} agents", f"{agent_nodes.size}")
+    if positions.shape != (is_anchor.size, dim):
+        raise ValidationError("positions", f"shape {positions.shape}", f"[n_nodes, {dim}]")
+    logp = prior.log_density
+    moving = options.resample_move and logp is not None
+    lp = logp(X) if logp is not None else np.zeros((n_agents, Q))
+    lw0, n_bad = _normalize(np.where(np.isfinite(lp), 0.0, -np.inf))  # eq. (27): w^(p,0)
+
+    centers = positions.copy()
+    covs = np.zeros((is_anchor.size, dim, dim))
+    m, c = _moments(X, lw0)
+    centers[agent_nodes], covs[agent_nodes] = m, c
+    K_it = options.n_iterations
+    mean_hist = np.empty((K_it + 1, is_anchor.size, dim))
+    tr_hist = np.empty((K_it + 1, n_agents))
+    ess_hist = np.empty((K_it, n_agents))
+    mean_hist[0], tr_hist[0] = centers, np.trace(c, axis1=1, axis2=2)
+    n_steps = 0
+
+    lw = lw0
+    ll_old = np.zeros((n_agents, Q))  # log-likelihood of the target the particles represent
+    old_fn = None  # evaluates ll_old at other particles (None: the prior, ll ≡ 0)
+    for k in range(1, K_it + 1):
+        new_fn = _frozen_loglik(likelihood, centers, covs, 1.0 if moving else options.gamma(k))
+        ll_new = new_fn(X)
+        if not moving:  # eq. (28): reweight the prior particles by the product of ELs
+            lw, bad = _normalize(lw0 + ll_new)
+            n_bad += bad
+            ess_hist[k - 1] = _ess(lw)
+        else:
+            X, lp, ll_new, lw, ess, steps = _anneal(
+                X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options
+            )
+            ess_hist[k - 1] = ess
+            n_steps += steps
+            ll_old, old_fn = ll_new, new_fn
+        m, c = _moments(X, lw)
+        new_centers = centers.copy()
+        new_centers[agent_nodes] = m
+        if options.cov_floor_m > 0:
+            c = _floor(c, likelihood, new_centers, agent_nodes, options.cov_floor_m)
+        covs = covs.copy()
+        covs[agent_nodes] = c
+        centers = new_centers
+        mean_hist[k], tr_hist[k] = centers, np.trace(c, axis1=1, axis2=2)
+    return DPFResult(
+        means=centers,
+        covs=covs,
+        mean_history=mean_hist,
+        cov_trace_history=tr_hist,
+        ess_history=ess_hist,
+        particles=X,
+        log_weights=lw,
+        n_degenerate=n_bad,
+        seconds=time.perf_counter() - t0,
+        agent_iterations=n_agents * K_it,
+        label=prior.label,
+        annealing_steps=n_steps,
+    )
+
+
+def _frozen_loglik(likelihood, centers, covs, gamma):
+    """The log-likelihood with the neighbours' moments of one iteration frozen."""
+    c, v = centers.copy(), covs.copy()
+
+    def fn(x):
+        return likelihood.loglik(x, c, v, gamma=gamma)
+
+    return fn
+
+
+def _anneal(X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options):
+    """Move equally weighted particles of ``prior·exp(ll_old)`` to ``prior·exp(ll_new)``.
+
+    Geometric bridge ``prior·exp(λ ll_new + (1 − λ) ll_old)``, λ: 0 → 1, each step as large as
+    keeps the effective sample size >= ``ess_fraction``·Q (bisection), followed by systematic
+    resampling and Metropolis–Hastings moves that leave the bridge target invariant. Returns
+    the moved particles with uniform weights, the smallest ESS seen and the number of steps.
+    """
+    n_agents, Q, _ = X.shape
+    lam = np.zeros(n_agents)
+    lw = np.full((n_agents, Q), -np.log(Q))
+    ess_min = np.full(n_agents, float(Q))
+    steps = 0
+    while np.any(lam < 1.0) and steps < options.max_annealing_steps:
+        steps += 1
+        delta = ll_new - ll_old
+        nxt = _next_lambda(lw, delta, lam, options.ess_fraction * Q)
+        if steps == options.max_annealing_steps:
+            nxt = np.ones(n_agents)
+        lw, _ = _normalize(lw + (nxt - lam)[:, None] * delta)
+        ess_min = np.minimum(ess_min, _ess(lw))
+        lam = nxt
+        X, lp, ll_old, ll_new = _resample(X, lw, rng, lp, ll_old, ll_new)
+        lw = np.full((n_agents, Q), -np.log(Q))
+        X, lp, ll_old, ll_new = _mh_moves(
+            X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, options
+        )
+    return X, lp, ll_new, lw, ess_min, steps
+
+
+def _next_lambda(lw, delta, lam, ess_target):
+    """Per agent, the largest λ' in (λ, 1] whose incremental weights keep ESS >= target."""
+    n_agents = lw.shape[0]
+    out = np.ones(n_agents)
+    for a in range(n_agents):
+        if lam[a] >= 1.0:
+            continue
+
+        def ess(step, a=a):
+            w, _ = _normalize((lw[a] + step * delta[a])[None])
+            return float(_ess(w)[0])
+
+        hi = 1.0 - lam[a]
+        if ess(hi) >= ess_target:
+            out[a] = 1.0
+            continue
+        lo = 0.0
+        for _ in range(30):
+            mid = 0.5 * (lo + hi)
+            if ess(mid) >= ess_target:
+                lo = mid
+            else:
+                hi = mid
+        out[a] = lam[a] + max(lo, 1e-6 * (1.0 - lam[a]))
+    return np.minimum(out, 1.0)
+
+
+def _resample(X, lw, rng, *arrays):
+    n_agents, Q, _ = X.shape
+    idx = np.empty((n_agents, Q), dtype=np.int64)
+    for a in range(n_agents):
+        idx[a] = systematic_resample(lw[a], Q, rng)
+    out = [np.take_along_axis(X, idx[:, :, None], axis=1)]
+    out += [np.take_along_axis(arr, idx, axis=1) for arr in arrays]
+    return out
+
+
+def _mh_moves(X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, options):
+    """Random-walk MH sweeps targeting prior·exp(λ ll_new + (1 − λ) ll_old) per agent."""
+    n_agents, Q, _ = X.shape
+    lam3 = lam[:, None]
+    for _ in range(options.n_moves):
+        std = np.maximum(X.std(axis=1, keepdims=True) * options.move_scale, 1e-4)
+        Xp = X + std * rng.standard_normal(X.shape)
+        lpp = logp(Xp)
+        lnp = new_fn(Xp)
+        lop = old_fn(Xp) if old_fn is not None else np.zeros_like(lnp)
+        cur = lp + lam3 * ll_new + (1.0 - lam3) * ll_old
+        prop = lpp + lam3 * lnp + (1.0 - lam3) * lop
+        with np.errstate(invalid="ignore"):
+            log_ratio = np.where(np.isfinite(prop), prop - cur, -np.inf)
+        accept = np.log(rng.random((n_agents, Q))) < log_ratio
+        X = np.where(accept[:, :, None], Xp, X)
+        lp = np.where(accept, lpp, lp)
+        ll_new = np.where(accept, lnp, ll_new)
+        ll_old = np.where(accept, lop, ll_old)
+    return X, lp, ll_old, ll_new
+
+
+def systematic_resample(log_weights_row, n, rng) -> np.ndarray:
+    """Indices of a systematic resample of one agent's normalized log weights."""
+    w = np.exp(log_weights_row - np.max(log_weights_row))
+    w /= w.sum()
+    out = np.empty(n, dtype=np.int64)
+    K.systematic_resample_kernel(w, float(rng.random()), out)
+    return out
+
+
+def projected_variance_of(centers, covs, rx, tx):
+    """Re-export of :func:`~phyloc.localization.likelihoods.projected_variances`."""
+    return projected_variances(centers, covs, rx, tx)

@@ -1,0 +1,245 @@
+"""The equivalent-likelihood DPF: DiPNet (eqs. (25)–(28)) and its safeguards."""
+
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from phyloc.localization import _kernels as K
+from phyloc.localization.dpf import DPFOptions, Prior, run_dpf
+from phyloc.localization.likelihoods import (
+    DirectLikelihood,
+    GaussianRangeLikelihood,
+    projected_variances,
+)
+from phyloc.phy import C0, OFDMSystem, PathSet
+from phyloc.phy.correlation import correlation_tables
+from phyloc.phy.synthesis import synthesize
+from phyloc.phy.waveform import qpsk_symbols
+
+SYSTEM = OFDMSystem()
+
+
+def awgn_network(positions, is_anchor, links, rng, pc_snr_db=40.0, scale_gain=1.0):
+    d = np.linalg.norm(positions[links[:, 0]] - positions[links[:, 1]], axis=1)
+    S = qpsk_symbols(SYSTEM, len(positions), rng)
+    snr = 10 ** (pc_snr_db / 10) / SYSTEM.n_subcarriers
+    gains = (
+        scale_gain * math.sqrt(snr * SYSTEM.noise_power_w) * np.exp(2j * np.pi * rng.random(d.size))
+    )
+    R = synthesize(PathSet.single_path(d / C0, gains), S, SYSTEM, rng, tx_index=links[:, 1])
+    return correlation_tables(R, S, SYSTEM, tx_index=links[:, 1])
+
+
+def agent_map(is_anchor):
+    out = -np.ones(is_anchor.size, np.int64)
+    out[~is_anchor] = np.arange((~is_anchor).sum())
+    return out
+
+
+def gaussian_prior(centers, std, Q, rng, label="test"):
+    X = centers[:, None, :] + std * rng.standard_normal((len(centers), Q, centers.shape[1]))
+
+    def logp(x):
+        return -0.5 * np.sum((x - centers[:, None, :]) ** 2, axis=2) / std**2
+
+    return Prior(X, logp, label)
+
+
+ANCHORS = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 100.0], [100.0, 100.0]])
+
+
+def single_agent_setup(agent=(37.0, 61.0)):
+    pos = np.vstack([np.array([agent]), ANCHORS])
+    is_anchor = np.array([False, True, True, True, True])
+    links = np.array([[0, j] for j in range(1, 5)])
+    return pos, is_anchor, links
+
+
+# -- equations by hand ------------------------------------------------------------------------
+def test_projected_variance_eq15_by_hand():
+    centers = np.array([[0.0, 0.0], [3.0, 4.0]])  # e_uv = (-3, -4)/5
+    covs = np.array([np.zeros((2, 2)), [[2.0, 0.5], [0.5, 1.0]]])
+    # e^T C e = (9·2 + 2·12·0.5 + 16·1)/25 = (18 + 12 + 16)/25 = 1.84
+    got = projected_variances(centers, covs, np.array([0]), np.array([1]))
+    assert got[0] == pytest.approx(1.84)
+    # coincident nodes: isotropic trace/dim = 1.5, not NaN
+    got = projected_variances(np.zeros((2, 2)), covs, np.array([0]), np.array([1]))
+    assert got[0] == pytest.approx(1.5)
+
+
+def test_env_eq26_and_erv_eq18_by_hand(rng):
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, rng)
+    lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
+    centers = pos.copy()
+    covs = np.zeros((5, 2, 2))
+    covs[1] = np.diag([4.0, 1.0])  # anchor 1 at (100, 0): e_01 = (-63, 61)/|.|
+    e = (pos[0] - pos[1]) / np.linalg.norm(pos[0] - pos[1])
+    s2 = 4.0 * e[0] ** 2 + 1.0 * e[1] ** 2
+    omega = 2 * math.pi * 14650.0
+    n = np.arange(-1284, 1285)
+    expected = lik.noise_var[0] + 2 * omega**2 * s2 * lik.alpha_abs2[0] * np.sum(n**2) / C0**2
+    env = lik.env(centers, covs)
+    assert env[0] == pytest.approx(expected, rel=1e-12)
+    np.testing.assert_allclose(env[1:], lik.noise_var[1:])
+    # ENV consistency: CRB with σ̃² (eq. (24)) = CRB with σ² + σ²_{v→uv} (eq. (18))
+    crb = C0**2 * lik.noise_var[0] / (2 * lik.alpha_abs2[0] * omega**2 * np.sum(n**2))
+    crb_env = C0**2 * env[0] / (2 * lik.alpha_abs2[0] * omega**2 * np.sum(n**2))
+    assert crb_env == pytest.approx(crb + s2, rel=1e-10)
+    # ERV of the Gaussian model: var + e^T C e
+    g = GaussianRangeLikelihood(
+        np.full(4, 50.0), np.full(4, 0.25), np.ones(4, bool), links, agent_map(is_anchor), 1
+    )
+    X = np.array([[[37.0, 61.0]]])
+    d = np.linalg.norm(X[0, 0] - pos[1])
+    by_hand = -0.5 * (d - 50.0) ** 2 / (0.25 + s2)
+    others = sum(-0.5 * (np.linalg.norm(X[0, 0] - pos[j]) - 50.0) ** 2 / 0.25 for j in (2, 3, 4))
+    assert g.loglik(X, centers, covs)[0, 0] == pytest.approx(by_hand + others, rel=1e-12)
+
+
+# -- kernels against their twins -----------------------------------------------------------------
+def test_loglik_kernels_match_numpy_twins(rng):
+    n_agents, Q, dim, n_nodes = 3, 50, 2, 6
+    X = rng.uniform(0, 100, (n_agents, Q, dim))
+    centers = rng.uniform(0, 100, (n_nodes, dim))
+    offsets = np.array([0, 2, 2, 5])  # agent 1 has no links
+    nb = np.array([3, 4, 0, 5, 1])
+    values = rng.standard_normal((5, 400)) + 1j * rng.standard_normal((5, 400))
+    scale = rng.uniform(0.1, 2, 5)
+    out = np.empty((n_agents, Q))
+    K.direct_loglik_kernel(X, offsets, nb, np.arange(5), scale, centers, values, 1.3, 4, out)
+    ref = K.direct_loglik_numpy(X, offsets, nb, np.arange(5), scale, centers, values, 1.3, 4)
+    np.testing.assert_allclose(out, ref, rtol=1e-12)
+    assert np.all(out[1] == 0)
+    r, iv = rng.uniform(10, 90, 5), rng.uniform(0.1, 3, 5)
+    K.gauss_loglik_kernel(X, offsets, nb, r, iv, centers, out)
+    np.testing.assert_allclose(
+        out, K.gauss_loglik_numpy(X, offsets, nb, r, iv, centers), rtol=1e-12
+    )
+
+
+def test_systematic_resampling_matches_twin_and_textbook(rng):
+    w = rng.random(37)
+    w /= w.sum()
+    for u0 in (0.0, 0.3, 0.999):
+        out = np.empty(100, np.int64)
+        K.systematic_resample_kernel(w, u0, out)
+        np.testing.assert_array_equal(out, K.systematic_resample_numpy(w, u0, 100))
+        # textbook: particle i is copied floor(N w_i) or ceil(N w_i) times
+        counts = np.bincount(out, minlength=37)
+        assert np.all(counts >= np.floor(100 * w) - 1e-9) and np.all(counts <= np.ceil(100 * w))
+    one = np.zeros(10)
+    one[7] = 1.0
+    out = np.empty(10, np.int64)
+    K.systematic_resample_kernel(one, 0.5, out)
+    assert np.all(out == 7)  # all weight on one particle ⇒ every copy is that particle
+
+
+# -- behaviour --------------------------------------------------------------------------------
+def test_dipnet_single_agent_reaches_the_efim_bound():
+    rng = np.random.default_rng(5)
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, rng)
+    lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
+    e = (pos[0] - pos[1:]) / np.linalg.norm(pos[0] - pos[1:], axis=1)[:, None]
+    J = np.einsum("l,li,lj->ij", lik.nu, e, e)
+    bound = math.sqrt(np.trace(np.linalg.inv(J)))
+    errs = []
+    for _ in range(25):
+        lt = awgn_network(pos, is_anchor, links, rng)
+        lk = DirectLikelihood(lt, links, agent_map(is_anchor), 1)
+        res = run_dpf(lk, gaussian_prior(pos[:1], 10.0, 1000, rng), pos, is_anchor, rng)
+        errs.append(res.means[0] - pos[0])
+    rmse = math.sqrt(np.mean(np.sum(np.square(errs), axis=1)))
+    assert bound / 2 <= rmse <= 2 * bound
+
+
+def test_published_variant_collapses_and_default_does_not():
+    rng = np.random.default_rng(8)
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, rng)
+    lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
+    wide = gaussian_prior(pos[:1] + 20.0, 40.0, 1000, rng)  # uninformative-ish
+    pub = run_dpf(lik, wide, pos, is_anchor, rng, DPFOptions.published())
+    safe = run_dpf(lik, wide, pos, is_anchor, rng, DPFOptions())
+    assert pub.ess_history[0, 0] < 3.0
+    assert safe.ess_history.min() >= 0.45 * 1000
+    assert safe.annealing_steps > 1
+
+
+def _finite_belief(res):
+    w = np.exp(res.log_weights)
+    assert np.all(np.isfinite(res.means)) and np.all(np.isfinite(res.covs))
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=1e-9)
+
+
+@pytest.mark.parametrize("opts", [DPFOptions(n_iterations=3), DPFOptions.published(n_iterations=3)])
+def test_degenerate_inputs_stay_finite(opts):
+    rng = np.random.default_rng(2)
+    pos, is_anchor, links = single_agent_setup()
+    # all-zero likelihood: a table of zeros
+    tab = awgn_network(pos, is_anchor, links, rng, scale_gain=0.0)
+    object.__setattr__(tab, "values", np.zeros_like(tab.values))
+    lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
+    _finite_belief(run_dpf(lik, gaussian_prior(pos[:1], 5.0, 200, rng), pos, is_anchor, rng, opts))
+    # SNR of 100 dB
+    tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=100.0)
+    lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
+    res = run_dpf(lik, gaussian_prior(pos[:1], 5.0, 200, rng), pos, is_anchor, rng, opts)
+    _finite_belief(res)
+    # an agent with no neighbours and two coincident agents
+    pos2 = np.vstack([pos, [[37.0, 61.0]], [[80.0, 20.0]]])
+    is_anchor2 = np.append(is_anchor, [False, False])
+    links2 = np.array([[0, 1], [0, 2], [0, 5], [5, 0], [5, 3]])  # node 6 has no links
+    tab2 = awgn_network(pos2, is_anchor2, links2, rng)
+    lik2 = DirectLikelihood(tab2, links2, agent_map(is_anchor2), 3)
+    prior2 = gaussian_prior(pos2[~is_anchor2], 5.0, 200, rng)
+    res2 = run_dpf(lik2, prior2, pos2, is_anchor2, rng, opts)
+    _finite_belief(res2)
+
+
+def test_many_particles_and_neighbours_stay_finite():
+    rng = np.random.default_rng(3)
+    n_nb = 100
+    ang = np.linspace(0, 2 * np.pi, n_nb, endpoint=False)
+    anchors = 50 + 40 * np.c_[np.cos(ang), np.sin(ang)]
+    pos = np.vstack([[[50.0, 50.0]], anchors])
+    is_anchor = np.r_[False, np.ones(n_nb, bool)]
+    links = np.c_[np.zeros(n_nb, np.int64), np.arange(1, n_nb + 1)]
+    g = GaussianRangeLikelihood(
+        np.full(n_nb, 40.0),
+        np.full(n_nb, 1e-4),
+        np.ones(n_nb, bool),
+        links,
+        agent_map(is_anchor),
+        1,
+    )
+    res = run_dpf(
+        g,
+        gaussian_prior(pos[:1], 3.0, 10_000, rng),
+        pos,
+        is_anchor,
+        rng,
+        DPFOptions(n_iterations=2),
+    )
+    _finite_belief(res)
+    assert np.linalg.norm(res.means[0] - pos[0]) < 0.05
+
+
+def test_same_seed_same_result_with_any_thread_count():
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, np.random.default_rng(4))
+    lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
+    out = []
+    before = numba.get_num_threads()
+    try:
+        for threads in (1, before):
+            numba.set_num_threads(threads)
+            rng = np.random.default_rng(12)
+            out.append(run_dpf(lik, gaussian_prior(pos[:1], 10.0, 300, rng), pos, is_anchor, rng))
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(out[0].means, out[1].means)
+    np.testing.assert_array_equal(out[0].particles, out[1].particles)

@@ -1,0 +1,478 @@
+"""Truth-free coarse network solution and priors (phyloc.localization.initialization).
+
+References: exact Euclidean distances (MDS must recover the configuration up to a rigid
+transform), a loop-by-loop Guttman transform written here, the metrics of
+phyloc.evaluation (framework distance RMSE, rigid alignment), and sample statistics of seeded
+draws against their distributions.
+"""
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from phyloc.errors import ValidationError
+from phyloc.evaluation.metrics import framework_distance_rmse, rigid_align
+from phyloc.localization.initialization import (
+    classical_mds,
+    coarse_positions,
+    gauge_log_prior,
+    gauge_priors,
+    gaussian_log_prior,
+    gaussian_priors,
+    informed_centers,
+    range_matrix,
+    raw_stress,
+    shortest_path_completion,
+    smacof,
+)
+from phyloc.network import NetworkSpec, make_network
+
+
+def _all_links(n):
+    return np.array([[u, w] for u in range(n) for w in range(n) if u != w], dtype=np.int64)
+
+
+def _dist(p, links):
+    return np.linalg.norm(p[links[:, 0]] - p[links[:, 1]], axis=1)
+
+
+def _full_d(p):
+    return np.linalg.norm(p[:, None] - p[None], axis=-1)
+
+
+def _naive_stress(X, D, W):
+    s = 0.0
+    for i in range(len(X)):
+        for j in range(i + 1, len(X)):
+            s += W[i, j] * (np.linalg.norm(X[i] - X[j]) - D[i, j]) ** 2
+    return s
+
+
+def _naive_guttman(X, D, W):
+    """One Guttman transform by loops; V⁺ = (V + 11ᵀ/n)⁻¹ − 11ᵀ/n (connected graph)."""
+    n = len(X)
+    V = np.zeros((n, n))
+    B = np.zeros((n, n))
+    for i in range(n):
+        for j in range(n):
+            if i == j:
+                continue
+            V[i, j] = -W[i, j]
+            V[i, i] += W[i, j]
+            dij = np.linalg.norm(X[i] - X[j])
+            b = W[i, j] * D[i, j] / dij if dij > 0 else 0.0
+            B[i, j] = -b
+            B[i, i] += b
+    one = np.ones((n, n)) / n
+    return (np.linalg.inv(V + one) - one) @ B @ X
+
+
+@pytest.fixture
+def comm_range_network(rng):
+    """30 agents + 4 corner anchors in 100 m × 100 m, 55 m range: about half of the pairs.
+
+    Every node has >= 3 neighbours: a node with one or two ranges could swing or flip at zero
+    stress (not rigidly determined), which no range-only method can resolve.
+    """
+    net = make_network(NetworkSpec(n_agents=30, comm_range_m=55.0, anchors=4), rng)
+    assert net.adjacency().sum(axis=1).min() >= 3
+    return net
+
+
+# -- range matrix -------------------------------------------------------------------------------
+def test_range_matrix_averages_and_marks_missing():
+    links = [[0, 1], [1, 0], [1, 2], [2, 1], [0, 3], [2, 3]]
+    ranges = [10.0, 12.0, 7.0, np.nan, 5.0, -0.5]
+    valid = np.array([True, True, True, True, False, True])
+    D, W = range_matrix(links, ranges, 4, valid)
+    assert D[0, 1] == D[1, 0] == 11.0  # both directions averaged
+    assert D[1, 2] == D[2, 1] == 7.0  # NaN direction ignored
+    assert W[0, 3] == 0.0 and D[0, 3] == 0.0  # invalid -> missing
+    assert W[2, 3] == 1.0 and D[2, 3] == 0.0  # negative estimate clipped
+    np.testing.assert_array_equal(W, W.T)
+    np.testing.assert_array_equal(np.diag(W), 0.0)
+    assert W.sum() == 2 * 3
+    # clipping happens after averaging: (−0.2 + 0.6)/2
+    D2, _ = range_matrix([[0, 1], [1, 0]], [-0.2, 0.6], 2)
+    assert D2[0, 1] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(
+    "links, ranges, match",
+    [
+        ([[0, 0]], [1.0], "self-link"),
+        ([[0, 5]], [1.0], "out of range"),
+        ([[0, 1]], [np.inf], "finite"),
+        ([[0, 1]], [1.0, 2.0], "ranges"),
+        ([[0, 1, 2]], [1.0], "n_links, 2"),
+    ],
+)
+def test_range_matrix_rejects_bad_input(links, ranges, match):
+    with pytest.raises(ValidationError, match=match):
+        range_matrix(links, ranges, 3)
+
+
+# -- classical MDS ------------------------------------------------------------------------------
+@pytest.mark.parametrize("dim", [2, 3])
+def test_mds_exact_distances_recover_configuration(dim, rng):
+    p = rng.uniform(0, 100, size=(25, dim))
+    X = classical_mds(_full_d(p), dim)
+    assert framework_distance_rmse(X, p) < 1e-9
+    _, _, aligned = rigid_align(X, p)
+    np.testing.assert_allclose(aligned, p, atol=1e-8)
+    np.testing.assert_allclose(X.mean(axis=0), 0.0, atol=1e-9)  # centred
+
+
+def test_mds_ignores_unread_entries_and_fills_by_shortest_path():
+    # path 0–1–2 on a line, pair (0, 2) missing: shortest path 3 + 4 = 7 = the true distance
+    D = np.array([[0.0, 3.0, np.nan], [3.0, 0.0, 4.0], [np.nan, 4.0, 0.0]])
+    W = np.array([[0, 1, 0], [1, 0, 1], [0, 1, 0]], dtype=float)
+    full = shortest_path_completion(D, W)
+    assert full[0, 2] == full[2, 0] == 7.0
+    X = classical_mds(D, 2, W)
+    np.testing.assert_allclose(_full_d(X), [[0, 3, 7], [3, 0, 4], [7, 4, 0]], atol=1e-9)
+
+
+def test_mds_degenerate_configurations():
+    # 2 nodes: ±d/2 on the first axis
+    np.testing.assert_allclose(classical_mds([[0.0, 8.0], [8.0, 0.0]], 2), [[4, 0], [-4, 0]])
+    # collinear nodes: exact distances, zero second coordinate
+    p = np.array([[0.0, 0.0], [1.0, 1.0], [3.0, 3.0], [7.0, 7.0]])
+    X = classical_mds(_full_d(p), 2)
+    np.testing.assert_allclose(_full_d(X), _full_d(p), atol=1e-9)
+    np.testing.assert_allclose(X[:, 1], 0.0, atol=1e-9)
+    # coplanar nodes in 3-D
+    q = np.c_[np.random.default_rng(0).uniform(0, 10, (6, 2)), np.zeros(6)]
+    X3 = classical_mds(_full_d(q), 3)
+    np.testing.assert_allclose(_full_d(X3), _full_d(q), atol=1e-8)
+    np.testing.assert_allclose(X3[:, 2], 0.0, atol=1e-7)
+
+
+def test_mds_is_deterministic(rng):
+    p = rng.uniform(0, 100, size=(12, 2))
+    np.testing.assert_array_equal(classical_mds(_full_d(p), 2), classical_mds(_full_d(p), 2))
+
+
+def test_disconnected_graph_and_node_without_range_raise(rng):
+    p = rng.uniform(0, 100, size=(5, 2))
+    W = np.ones((5, 5)) - np.eye(5)
+    W[4, :] = W[:, 4] = 0.0  # node 4 has no valid range
+    with pytest.raises(ValidationError, match=r"without any valid range: \[4\]"):
+        classical_mds(_full_d(p), 2, W)
+    links = np.array([[0, 1], [1, 0], [2, 3], [3, 2]])  # two separate pairs
+    with pytest.raises(ValidationError, match="2 connected components"):
+        coarse_positions(links, np.ones(4), 4, 2)
+
+
+def test_mds_validation():
+    with pytest.raises(ValidationError, match="dim"):
+        classical_mds(np.zeros((3, 3)), 4)
+    with pytest.raises(ValidationError, match="symmetric"):
+        classical_mds([[0.0, 1.0], [2.0, 0.0]], 2)
+    with pytest.raises(ValidationError, match="square"):
+        classical_mds(np.zeros((2, 3)), 2)
+    with pytest.raises(ValidationError, match="finite and >= 0"):
+        classical_mds([[0.0, -1.0], [-1.0, 0.0]], 2)
+
+
+# -- SMACOF -------------------------------------------------------------------------------------
+def test_stress_and_guttman_step_match_loops(rng):
+    p = rng.uniform(0, 50, size=(8, 2))
+    D = _full_d(p) + np.triu(rng.normal(0, 2, (8, 8)), 1)
+    D = np.abs(np.triu(D, 1) + np.triu(D, 1).T)
+    W = rng.uniform(0.5, 2.0, (8, 8))
+    W = np.triu(W, 1) + np.triu(W, 1).T
+    W[0, 1] = W[1, 0] = 0.0  # a missing pair, still connected
+    X0 = rng.uniform(0, 50, size=(8, 2))
+    assert raw_stress(X0, D, W) == pytest.approx(_naive_stress(X0, D, W), rel=1e-12)
+    X1, s1 = smacof(D, W, X0, n_iter=1, tol=0)
+    np.testing.assert_allclose(X1, _naive_guttman(X0, D, W), rtol=1e-9, atol=1e-9)
+    assert s1 == pytest.approx(_naive_stress(X1, D, W), rel=1e-12)
+
+
+def test_smacof_stress_never_increases_on_noisy_missing_data(comm_range_network, rng):
+    net = comm_range_network
+    p = net.positions[0]
+    ranges = net.distances() + rng.normal(0, 1.0, net.links.shape[0])
+    D, W = range_matrix(net.links, ranges, net.n_nodes)
+    X0 = classical_mds(D, 2, W)
+    X, s, hist = smacof(D, W, X0, n_iter=500, tol=0, return_history=True)
+    assert hist.size > 100  # it really iterated
+    assert np.all(np.diff(hist) <= 1e-12 * hist[:-1])
+    assert hist[0] == pytest.approx(raw_stress(X0, D, W))
+    assert s == hist[-1] == pytest.approx(raw_stress(X, D, W))
+    # MDS on shortest paths is biased; SMACOF fits the measured pairs much better
+    assert s < 0.5 * hist[0]
+    assert framework_distance_rmse(X, p) < framework_distance_rmse(X0, p)
+
+
+def test_smacof_converges_to_exact_configuration_with_missing_pairs(comm_range_network):
+    net = comm_range_network
+    p = net.positions[0]
+    D, W = range_matrix(net.links, net.distances(), net.n_nodes)
+    assert W.sum() < 0.65 * net.n_nodes * (net.n_nodes - 1)  # really incomplete
+    X0 = classical_mds(D, 2, W)
+    assert framework_distance_rmse(X0, p) > 0.1  # shortest paths are not distances
+    X, s = smacof(D, W, X0, n_iter=5000, tol=0)
+    assert s < 1e-12
+    assert framework_distance_rmse(X, p) < 1e-6
+
+
+def test_smacof_fixed_rows_stay_and_stress_decreases(rng):
+    p = rng.uniform(0, 50, size=(10, 2))
+    D = _full_d(p)
+    fixed = np.zeros(10, dtype=bool)
+    fixed[:3] = True
+    X0 = p + rng.normal(0, 5.0, p.shape)
+    X0[fixed] = p[fixed]
+    X, _, hist = smacof(D, None, X0, n_iter=3000, tol=0, fixed=fixed, return_history=True)
+    np.testing.assert_array_equal(X[fixed], p[fixed])
+    # exact data: σ reaches the rounding floor (~1e-25 m²), where it may jitter
+    assert np.all(np.diff(hist) <= 1e-12 * hist[:-1] + 1e-20)
+    assert hist[-1] < 1e-15
+    np.testing.assert_allclose(X, p, atol=1e-5)  # fixed anchors pin the frame: absolute
+
+
+def test_smacof_validation():
+    D = np.zeros((3, 3))
+    with pytest.raises(ValidationError, match="X0"):
+        smacof(D, None, np.zeros((2, 2)))
+    with pytest.raises(ValidationError, match="fixed"):
+        smacof(D, None, np.zeros((3, 2)), fixed=[1, 0, 0])
+    with pytest.raises(ValidationError, match="W"):
+        smacof(D, -np.ones((3, 3)), np.zeros((3, 2)))
+
+
+# -- coarse positions ---------------------------------------------------------------------------
+def test_coarse_positions_with_anchors_is_in_the_anchor_frame(comm_range_network, rng):
+    net = comm_range_network
+    p = net.positions[0]
+    sigma = 0.5
+    ranges = net.distances() + rng.normal(0, sigma, net.links.shape[0])
+    sol = coarse_positions(
+        net.links, ranges, net.n_nodes, 2, is_anchor=net.is_anchor,
+        anchor_positions=p[net.is_anchor],
+    )  # fmt: skip
+    assert sol.frame == "anchors"
+    np.testing.assert_array_equal(sol.positions[net.is_anchor], p[net.is_anchor])
+    # no alignment with the truth: the absolute error is of the order of the ranging noise
+    err = np.linalg.norm(sol.positions - p, axis=1)[~net.is_anchor]
+    assert np.sqrt(np.mean(err**2)) < 2 * sigma
+    assert err.max() < 8 * sigma
+    assert 0.3 * sigma < sol.residual_rms_m < 1.5 * sigma
+
+
+@pytest.mark.parametrize("n_iter", [0, 300], ids=["alignment only", "with SMACOF"])
+@pytest.mark.parametrize("mirror", [False, True])
+def test_coarse_positions_resolves_reflection(mirror, n_iter, rng):
+    # MDS sees the same distances for p and its mirror image, so its output has the wrong
+    # handedness for one of the two: the anchor fit must reflect it back (3 anchors, no
+    # symmetry between them). With n_iter = 0 (exact MDS, no SMACOF refinement) the rigid
+    # fit alone must do it.
+    p = rng.uniform(0, 100, size=(12, 2))
+    p[-3:] = [[0, 0], [100, 10], [30, 100]]
+    if mirror:
+        p[:, 0] = 100.0 - p[:, 0]
+    links = _all_links(12)
+    anchor = np.zeros(12, dtype=bool)
+    anchor[-3:] = True
+    anchor_links = anchor[links[:, 0]] & anchor[links[:, 1]]
+    sol = coarse_positions(
+        links[~anchor_links], _dist(p, links[~anchor_links]), 12, 2, is_anchor=anchor,
+        anchor_positions=p[anchor], n_iter=n_iter,
+    )  # fmt: skip
+    np.testing.assert_allclose(sol.positions, p, atol=1e-6)
+
+
+def test_coarse_positions_3d_with_anchors(rng):
+    p = rng.uniform(0, 20, size=(15, 3))
+    anchor = np.zeros(15, dtype=bool)
+    anchor[:5] = True
+    links = _all_links(15)
+    sol = coarse_positions(
+        links, _dist(p, links), 15, 3, is_anchor=anchor, anchor_positions=p[anchor]
+    )
+    assert sol.frame == "anchors"
+    np.testing.assert_allclose(sol.positions, p, atol=1e-6)
+
+
+def test_coarse_positions_anchor_free_is_arbitrary_frame(comm_range_network, rng):
+    net = comm_range_network
+    p = net.positions[0]
+    ranges = net.distances() + rng.normal(0, 0.5, net.links.shape[0])
+    sol = coarse_positions(net.links, ranges, net.n_nodes, 2)
+    assert sol.frame == "arbitrary"
+    np.testing.assert_allclose(sol.positions.mean(axis=0), 0.0, atol=1e-6)
+    assert framework_distance_rmse(sol.positions, p) < 2.0
+    # a naive guess (everything at the region centre) is far worse
+    assert framework_distance_rmse(np.full_like(p, 50.0), p) > 20.0
+
+
+@pytest.mark.parametrize(
+    "anchor_idx",
+    [[0], [0, 1], [0, 1, 2]],
+    ids=["one anchor", "two anchors", "three collinear anchors"],
+)
+def test_coarse_positions_with_too_few_or_degenerate_anchors(anchor_idx, rng):
+    p = rng.uniform(0, 100, size=(10, 2))
+    p[2] = p[0] + 0.3 * (p[1] - p[0])  # makes anchors 0, 1, 2 collinear
+    anchor = np.zeros(10, dtype=bool)
+    anchor[anchor_idx] = True
+    links = _all_links(10)
+    sol = coarse_positions(
+        links, _dist(p, links), 10, 2, is_anchor=anchor, anchor_positions=p[anchor]
+    )
+    assert sol.frame == "partial"
+    np.testing.assert_array_equal(sol.positions[anchor], p[anchor])  # anchors exact
+    assert framework_distance_rmse(sol.positions, p) < 1e-6  # shape still right
+    # the remaining freedom (rotation about / mirror across the anchors) is all that is left
+    _, _, aligned = rigid_align(sol.positions, p, is_anchor=anchor)
+    np.testing.assert_allclose(aligned, p, atol=1e-6)
+
+
+def test_coarse_positions_two_nodes_and_validation():
+    sol = coarse_positions([[0, 1], [1, 0]], [6.0, 6.2], 2, 2)
+    assert np.linalg.norm(sol.positions[0] - sol.positions[1]) == pytest.approx(6.1)
+    links = _all_links(4)
+    with pytest.raises(ValidationError, match="anchor_positions"):
+        coarse_positions(links, np.ones(12), 4, 2, is_anchor=np.array([1, 1, 1, 0], bool))
+    with pytest.raises(ValidationError, match=r"anchor_positions"):
+        coarse_positions(
+            links, np.ones(12), 4, 2, is_anchor=np.array([1, 1, 1, 0], bool),
+            anchor_positions=np.zeros((2, 2)),
+        )  # fmt: skip
+    with pytest.raises(ValidationError, match="n_nodes"):
+        coarse_positions(np.zeros((0, 2), int), [], 1, 2)
+    with pytest.raises(ValidationError, match="rng"):
+        coarse_positions(links, np.ones(12), 4, 2, n_restarts=2)
+
+
+def test_coarse_positions_reproducible_and_restarts_never_worse(comm_range_network):
+    net = comm_range_network
+    noise = np.random.default_rng(5).normal(0, 2.0, net.links.shape[0])
+    ranges = net.distances() + noise
+    base = coarse_positions(net.links, ranges, net.n_nodes, 2)
+    a = coarse_positions(
+        net.links, ranges, net.n_nodes, 2, n_restarts=3, rng=np.random.default_rng(9)
+    )
+    b = coarse_positions(
+        net.links, ranges, net.n_nodes, 2, n_restarts=3, rng=np.random.default_rng(9)
+    )
+    np.testing.assert_array_equal(a.positions, b.positions)
+    assert a.stress <= base.stress
+
+
+# -- priors -------------------------------------------------------------------------------------
+def test_gaussian_priors_moments(rng):
+    centers = np.array([[0.0, 0.0], [10.0, -5.0], [100.0, 50.0]])
+    std = np.array([1.0, 5.0, 10.0])
+    Q = 20_000
+    x = gaussian_priors(centers, std, Q, rng)
+    assert x.shape == (3, Q, 2)
+    # mean within 5 standard errors; sample std within 5·σ/√(2Q) ≈ 2.5 %
+    assert np.all(np.abs(x.mean(axis=1) - centers) < 5 * std[:, None] / np.sqrt(Q))
+    np.testing.assert_allclose(x.std(axis=1), np.repeat(std[:, None], 2, axis=1), rtol=0.025)
+    # independent axes
+    assert abs(np.corrcoef(x[1, :, 0], x[1, :, 1])[0, 1]) < 5 / np.sqrt(Q)
+    # a scalar std is broadcast to every agent
+    y = gaussian_priors(centers, 2.0, Q, rng)
+    np.testing.assert_allclose(y.std(axis=1), 2.0, rtol=0.025)
+
+
+def test_gaussian_log_prior_matches_scipy(rng):
+    centers = rng.uniform(0, 100, size=(3, 3))
+    std = np.array([0.5, 2.0, 7.0])
+    x = gaussian_priors(centers, std, 50, rng)
+    lp = gaussian_log_prior(x, centers, std)
+    for u in range(3):
+        ref = stats.multivariate_normal(centers[u], std[u] ** 2 * np.eye(3)).logpdf(x[u])
+        np.testing.assert_allclose(lp[u], ref, rtol=1e-12)
+
+
+def test_priors_reproducible_with_seed():
+    c = np.zeros((4, 2))
+    a = gaussian_priors(c, 3.0, 100, np.random.default_rng(1))
+    b = gaussian_priors(c, 3.0, 100, np.random.default_rng(1))
+    np.testing.assert_array_equal(a, b)
+    g1 = gauge_priors(5, 3, 100, 50.0, np.random.default_rng(2))
+    g2 = gauge_priors(5, 3, 100, 50.0, np.random.default_rng(2))
+    np.testing.assert_array_equal(g1, g2)
+    t = np.ones((3, 2))
+    np.testing.assert_array_equal(
+        informed_centers(t, rng=np.random.default_rng(3)),
+        informed_centers(t, rng=np.random.default_rng(3)),
+    )
+
+
+def test_prior_validation(rng):
+    with pytest.raises(ValidationError, match="std_m"):
+        gaussian_priors(np.zeros((2, 2)), 0.0, 10, rng)
+    with pytest.raises(ValidationError, match="std_m"):
+        gaussian_priors(np.zeros((2, 2)), [1.0, 2.0, 3.0], 10, rng)
+    with pytest.raises(ValidationError, match="rng"):
+        gaussian_priors(np.zeros((2, 2)), 1.0, 10, 42)
+    with pytest.raises(ValidationError, match="Q"):
+        gaussian_priors(np.zeros((2, 2)), 1.0, 0, rng)
+    with pytest.raises(ValidationError, match="particles"):
+        gaussian_log_prior(np.zeros((2, 5, 3)), np.zeros((2, 2)), 1.0)
+    with pytest.raises(ValidationError, match="extent_m"):
+        gauge_priors(3, 2, 10, 0.0, rng)
+    with pytest.raises(ValidationError, match="dim"):
+        gauge_priors(3, 4, 10, 1.0, rng)
+
+
+def test_informed_centers_statistics(rng):
+    truth = rng.uniform(0, 100, size=(20_000, 2))
+    c = informed_centers(truth, rng=rng)  # σ0 = 10 m by default
+    err = c - truth
+    assert abs(err.mean()) < 5 * 10.0 / np.sqrt(err.size)
+    assert err.std() == pytest.approx(10.0, rel=0.02)
+    np.testing.assert_array_equal(informed_centers(truth, 0.0, rng=rng), truth)
+    assert informed_centers(truth, 3.0, rng=rng).shape == truth.shape
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_gauge_priors_constraints(dim, rng):
+    e = 150.0
+    x = gauge_priors(7, dim, 5000, e, rng)
+    assert x.shape == (7, 5000, dim)
+    assert np.all(x[0] == 0.0)  # origin
+    assert np.all(x[1, :, 0] >= 0) and np.all(x[1, :, 1:] == 0.0)  # positive x-axis
+    assert np.all(x[2, :, 1] >= 0)  # upper half-plane
+    if dim == 3:
+        assert np.all(x[2, :, 2] == 0.0) and np.all(x[3, :, 2] >= 0)
+    assert np.all(np.abs(x) <= e)
+    # uniform on their supports: means and spreads of U(0, e) and U(−e, e)
+    tol = 5 * e / np.sqrt(12 * 5000)
+    assert abs(x[1, :, 0].mean() - e / 2) < tol
+    assert abs(x[2, :, 1].mean() - e / 2) < tol
+    assert abs(x[-1, :, 0].mean()) < 2 * tol
+    assert x[-1, :, 0].std() == pytest.approx(2 * e / np.sqrt(12), rel=0.05)
+    assert stats.kstest(x[-1, :, 1], stats.uniform(-e, 2 * e).cdf).pvalue > 1e-3
+    # every drawn particle is inside the support of the log prior
+    assert np.all(gauge_log_prior(x, e) == 0.0)
+
+
+def test_gauge_log_prior_outside_support():
+    e = 10.0
+    x = np.zeros((5, 1, 3))
+    x[3, 0, 2] = 1.0
+    assert np.all(gauge_log_prior(x, e) == 0.0)
+    cases = [
+        (0, (0, 0, 0.1)),  # agent 0 off the origin
+        (1, (0, 0, -1.0)),  # agent 1 on the negative x-axis
+        (1, (0, 1, 0.5)),  # agent 1 off the axis
+        (2, (0, 1, -1.0)),  # agent 2 below the x-axis
+        (2, (0, 2, 1.0)),  # agent 2 out of the xy-plane (3-D)
+        (3, (0, 2, -1.0)),  # agent 3 below the xy-plane (3-D)
+        (4, (0, 0, 10.5)),  # beyond the extent
+    ]
+    for agent, (q, axis, value) in cases:
+        y = x.copy()
+        y[agent, q, axis] = value
+        lp = gauge_log_prior(y, e)
+        assert lp[agent, 0] == -np.inf, (agent, axis, value)
+        assert np.sum(np.isinf(lp)) == 1
+    # in 2-D agent 3 is unconstrained (besides the extent)
+    x2 = np.array([[[0, 0]], [[1, 0]], [[0, 1]], [[-3, -4]]], dtype=float)
+    assert gauge_log_prior(x2, e)[3, 0] == 0.0
