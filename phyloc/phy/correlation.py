@@ -348,19 +348,11 @@ def correlation_tables(
     chunk = v.integer("chunk", chunk, minimum=1)
 
     L = fft_length(system, beta)
-    h = (N - 1) // 2
     spectrum = np.conj(R) * S[tx]
     values = _fft.aligned_empty((n_links, L))
     for a in range(0, n_links, chunk):
         b = min(a + chunk, n_links)
-        plan = _fft.batch_fft(b - a, L)
-        buf = plan.input
-        if plan.band != h:  # another caller used this plan with another N: clear the padding
-            buf[...] = 0
-            plan.band = h
-        buf[:, : h + 1] = spectrum[a:b, h:]  # n = 0 … h
-        buf[:, L - h :] = spectrum[a:b, :h]  # n = −h … −1 (the middle stays zero)
-        plan.execute(out=values[a:b])
+        _fft.batch_fft(b - a, L).centered(spectrum[a:b], out=values[a:b])
     energy = (np.abs(S) ** 2).sum(axis=1)[tx]
     n = system.subcarrier_indices()
     moment2 = ((np.abs(S) ** 2) * n**2).sum(axis=1)[tx]

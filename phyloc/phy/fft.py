@@ -163,7 +163,8 @@ class BatchFFT:
     def __init__(self, batch: int, length: int, *, n_threads: int | None = None):
         self.shape = (int(batch), int(length))
         self.backend = backend()
-        self.band = None  # callers may record which part of `input` they keep non-zero
+        self.band = None  # half-width of the spectrum last scattered by `centered`
+        self.lock = threading.Lock()  # one transform at a time through the shared buffers
         self.n_threads = n_threads or threads()
         if self.backend == "pyfftw":
             _load_wisdom()
@@ -204,6 +205,32 @@ class BatchFFT:
                 return target
         self._plan.execute()
         return target
+
+    def centered(self, spectrum: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Forward FFT of zero-padded centred spectra (thread-safe).
+
+        ``spectrum [b, N]`` (b <= batch, N odd) holds bins ``n = −(N−1)/2 … (N−1)/2``; bin n goes
+        to index ``n mod L`` of the padded row, so output k is ``Σ_n c_n e^{−j2πnk/L}``. Returns
+        ``out`` (``[b, L]``) or a view of the first b rows of :attr:`output` (valid until the
+        next call).
+        """
+        b, N = spectrum.shape
+        h = (N - 1) // 2
+        L = self.shape[1]
+        with self.lock:
+            buf = self.input
+            if self.band != h:  # another spectrum width used this plan: clear the padding
+                buf[...] = 0
+                self.band = h
+            buf[:b, : h + 1] = spectrum[:, h:]  # n = 0 … h
+            buf[:b, L - h :] = spectrum[:, :h]  # n = −h … −1 (the middle stays zero)
+            if out is not None and b == self.shape[0]:
+                return self.execute(out=out)
+            res = self.execute()
+            if out is None:
+                return res[:b]
+            out[...] = res[:b]
+            return out
 
 
 def batch_fft(batch: int, length: int) -> BatchFFT:

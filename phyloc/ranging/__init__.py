@@ -1,1 +1,44 @@
-"""phyloc.ranging (see DESIGN.md)."""
+"""Two-step range estimators and the Gaussian ranging model (DiPNet §V-A, Fig. 4).
+
+Each estimator turns the correlation tables of a batch of links
+(:func:`phyloc.phy.correlation.correlation_tables`) into :class:`RangeEstimates`: a range, a
+bias-corrected per-sample SNR estimate, the ranging variance (one-path ZZB at that SNR, or the
+CRB) and a validity flag.
+
+``corr``        :func:`correlation_peak`: strongest correlation peak, Newton-refined (ML for one
+                path).
+``first_peak``  :func:`first_peak`: earliest local maximum above thresholds relative to the
+                strongest peak and to the noise floor.
+``sage``        :func:`sage`: SAGE estimates of L+1 paths; LOS = earliest path above a power
+                threshold.
+``sage_los``    NLOS-rejected SAGE (:func:`nlos_rejected`): an **oracle** that drops NLOS
+                links by ground truth; ``oracle=True`` on its results.
+
+:func:`estimate` dispatches by name; :func:`ranging_variance` gives the model's variance.
+"""
+
+from phyloc.ranging.estimators import (
+    ESTIMATORS,
+    METHODS,
+    ORACLES,
+    correlation_peak,
+    estimate,
+    first_peak,
+    nlos_rejected,
+)
+from phyloc.ranging.results import RangeEstimates
+from phyloc.ranging.sage import sage
+from phyloc.ranging.variance import ranging_variance
+
+__all__ = [
+    "ESTIMATORS",
+    "METHODS",
+    "ORACLES",
+    "RangeEstimates",
+    "correlation_peak",
+    "estimate",
+    "first_peak",
+    "nlos_rejected",
+    "ranging_variance",
+    "sage",
+]

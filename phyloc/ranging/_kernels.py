@@ -1,0 +1,385 @@
+"""Numba kernels of the range estimators, each beside its plain-NumPy twin (``*_numpy``).
+
+Kernels take arrays and scalars only: no validation, no objects, no random numbers. The public
+functions in :mod:`phyloc.ranging.sage` validate, allocate and call them; ``tests/test_ranging.py``
+compares every kernel with its twin and with the slow references of ``tests/naive_ranging.py``.
+
+Everything works on a link's *correlation spectrum* ``c_n = R_n^* S_n`` (the
+:attr:`~phyloc.phy.correlation.CorrelationTable.spectrum` row), subcarriers ``n = n0 + k``,
+``k = 0 … N−1``, and distances d [m] with ``w = ω/c0`` [rad/m]:
+
+.. math:: F(d) = \\sum_n x_n e^{-j w n d}, \\qquad
+          \\text{path } (d_l, α_l) \\text{ contributes } |S_n|^2 α_l^* e^{+j w n d_l}
+          \\text{ to } c_n.
+
+Phasors ``e^{−jwnd}`` are formed in blocks of ``_BLOCK`` subcarriers as a base phasor times
+fixed in-block offsets (independent products, so the loops vectorize); the base advances by one
+complex multiplication per block and is re-seeded from an exact exponential every
+``_RESEED_BLOCKS`` blocks, which keeps the rounding error ~1e-14 relative for any N.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+_BLOCK = 32
+_RESEED_BLOCKS = 16
+
+
+# ---------------------------------------------------------------------------------------------
+# Correlation of a spectrum at one distance: Σ x e^{−jwnd}, Σ n x e^{−jwnd}, Σ n² x e^{−jwnd}
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _block_phasors(th):
+    """In-block offsets ``e^{jθm}``, ``m < _BLOCK`` (real, imag), and the step ``e^{jθ·_BLOCK}``."""
+    orr = np.empty(_BLOCK)
+    oi = np.empty(_BLOCK)
+    zr = math.cos(th)
+    zi = math.sin(th)
+    pr = 1.0
+    pi = 0.0
+    for m in range(_BLOCK):
+        orr[m] = pr
+        oi[m] = pi
+        t = pr * zr - pi * zi
+        pi = pr * zi + pi * zr
+        pr = t
+    return orr, oi, math.cos(th * _BLOCK), math.sin(th * _BLOCK)
+
+
+@njit(cache=True, fastmath=True)
+def _correlate(x, n0, w, d):
+    """``F(d) = Σ_k x_k e^{−j w n_k d}``, ``n_k = n0 + k`` (one pass, vectorized blocks).
+
+    ``fastmath`` only lets the compiler reassociate the sums (vector lanes); no infinities or
+    NaNs occur for finite input.
+    """
+    N = x.size
+    th = -w * d
+    orr, oi, sr, si = _block_phasors(th)
+    accr = np.zeros(_BLOCK)
+    acci = np.zeros(_BLOCK)
+    nb = N // _BLOCK
+    br = 1.0
+    bi = 0.0
+    for b in range(nb):
+        k0 = b * _BLOCK
+        if b % _RESEED_BLOCKS == 0:  # exact base phasor every few blocks
+            ph = th * (n0 + k0)
+            br = math.cos(ph)
+            bi = math.sin(ph)
+        for m in range(_BLOCK):
+            qr = br * orr[m] - bi * oi[m]
+            qi = br * oi[m] + bi * orr[m]
+            xr = x[k0 + m].real
+            xi = x[k0 + m].imag
+            accr[m] += xr * qr - xi * qi
+            acci[m] += xr * qi + xi * qr
+        t = br * sr - bi * si
+        bi = br * si + bi * sr
+        br = t
+    ar = accr.sum()
+    ai = acci.sum()
+    for k in range(nb * _BLOCK, N):
+        ph = th * (n0 + k)
+        c = math.cos(ph)
+        s = math.sin(ph)
+        ar += x[k].real * c - x[k].imag * s
+        ai += x[k].real * s + x[k].imag * c
+    return complex(ar, ai)
+
+
+@njit(cache=True, fastmath=True)
+def _correlate_derivs(x, n0, w, d):
+    """``(T0, T1, T2)``, ``T_m = Σ_k n_k^m x_k e^{−j w n_k d}``: ``F = T0``, ``F' = −jw T1``,
+    ``F'' = −w² T2``."""
+    N = x.size
+    th = -w * d
+    orr, oi, sr, si = _block_phasors(th)
+    a0r = np.zeros(_BLOCK)
+    a0i = np.zeros(_BLOCK)
+    a1r = np.zeros(_BLOCK)
+    a1i = np.zeros(_BLOCK)
+    a2r = np.zeros(_BLOCK)
+    a2i = np.zeros(_BLOCK)
+    nb = N // _BLOCK
+    br = 1.0
+    bi = 0.0
+    for b in range(nb):
+        k0 = b * _BLOCK
+        if b % _RESEED_BLOCKS == 0:
+            ph = th * (n0 + k0)
+            br = math.cos(ph)
+            bi = math.sin(ph)
+        for m in range(_BLOCK):
+            qr = br * orr[m] - bi * oi[m]
+            qi = br * oi[m] + bi * orr[m]
+            xr = x[k0 + m].real
+            xi = x[k0 + m].imag
+            vr = xr * qr - xi * qi
+            vi = xr * qi + xi * qr
+            nn = n0 + (k0 + m)
+            a0r[m] += vr
+            a0i[m] += vi
+            a1r[m] += nn * vr
+            a1i[m] += nn * vi
+            a2r[m] += nn * nn * vr
+            a2i[m] += nn * nn * vi
+        t = br * sr - bi * si
+        bi = br * si + bi * sr
+        br = t
+    t0r = a0r.sum()
+    t0i = a0i.sum()
+    t1r = a1r.sum()
+    t1i = a1i.sum()
+    t2r = a2r.sum()
+    t2i = a2i.sum()
+    for k in range(nb * _BLOCK, N):
+        nn = n0 + k
+        ph = th * nn
+        c = math.cos(ph)
+        s = math.sin(ph)
+        vr = x[k].real * c - x[k].imag * s
+        vi = x[k].real * s + x[k].imag * c
+        t0r += vr
+        t0i += vi
+        t1r += nn * vr
+        t1i += nn * vi
+        t2r += nn * nn * vr
+        t2i += nn * nn * vi
+    return complex(t0r, t0i), complex(t1r, t1i), complex(t2r, t2i)
+
+
+@njit(cache=True, fastmath=True)
+def _add_path(x, power, n0, w, d, coef):
+    """``x_k += coef · power_k · e^{+j w n_k d}`` in place (one path's contribution to c)."""
+    N = x.size
+    th = w * d
+    orr, oi, sr, si = _block_phasors(th)
+    cr = coef.real
+    ci = coef.imag
+    nb = N // _BLOCK
+    br = 1.0
+    bi = 0.0
+    for b in range(nb):
+        k0 = b * _BLOCK
+        if b % _RESEED_BLOCKS == 0:
+            ph = th * (n0 + k0)
+            br = cr * math.cos(ph) - ci * math.sin(ph)  # coef · base phasor
+            bi = cr * math.sin(ph) + ci * math.cos(ph)
+        for m in range(_BLOCK):
+            p = power[k0 + m]
+            qr = br * orr[m] - bi * oi[m]
+            qi = br * oi[m] + bi * orr[m]
+            x[k0 + m] += complex(p * qr, p * qi)
+        t = br * sr - bi * si
+        bi = br * si + bi * sr
+        br = t
+    for k in range(nb * _BLOCK, N):
+        x[k] += power[k] * coef * complex(math.cos(th * (n0 + k)), math.sin(th * (n0 + k)))
+
+
+@njit(cache=True)
+def _newton_peak(x, n0, w, d0, spacing, n_iter):
+    """Newton iterations on ``g(d) = |F(d)|²`` from ``d0`` (as the PHY refine kernel).
+
+    A step is taken only where ``g'' < 0``, clipped to half a ``spacing``; a result farther than
+    one ``spacing`` from ``d0`` is discarded (``d0`` is kept).
+    """
+    d = d0
+    for _ in range(n_iter):
+        T0, T1, T2 = _correlate_derivs(x, n0, w, d)
+        F1 = -1j * w * T1
+        F2 = -(w * w) * T2
+        g1 = 2.0 * (T0.real * F1.real + T0.imag * F1.imag)
+        g2 = 2.0 * (F1.real**2 + F1.imag**2 + T0.real * F2.real + T0.imag * F2.imag)
+        if not (g2 < 0.0):
+            break
+        step = -g1 / g2
+        if step > 0.5 * spacing:
+            step = 0.5 * spacing
+        elif step < -0.5 * spacing:
+            step = -0.5 * spacing
+        d += step
+        if abs(step) < 1e-9 * spacing:
+            break
+    if abs(d - d0) > spacing:
+        d = d0
+    return d
+
+
+@njit(cache=True, parallel=True)
+def refine_kernel(spectrum, n0, w, d0, spacing, n_iter, out):
+    """``out[i]`` = Newton-refined maximum of ``|F_i|²`` from ``d0[i]`` (per link, parallel).
+
+    The algorithm of :func:`phyloc.phy._kernels.refine_peaks_kernel` (whose NumPy twin
+    ``refine_peaks_numpy`` is this kernel's reference too), with the vectorized block phasors
+    instead of one complex exponential per subcarrier (~10× faster).
+    """
+    for i in prange(d0.size):
+        out[i] = _newton_peak(spectrum[i], n0, w, d0[i], spacing, n_iter)
+
+
+@njit(cache=True, parallel=True)
+def correlate_kernel(spectrum, n0, w, d, out):
+    """``out[i] = F_i(d[i]) = Σ_k c_{ik} e^{−j w n_k d_i}`` (exact, per link, parallel)."""
+    for i in prange(d.size):
+        out[i] = _correlate(spectrum[i], n0, w, d[i])
+
+
+def correlate_numpy(spectrum, n0, w, d):
+    """Plain-NumPy twin of :func:`correlate_kernel`."""
+    n = n0 + np.arange(spectrum.shape[1], dtype=np.float64)
+    return (spectrum * np.exp(-1j * w * d[:, None] * n[None, :])).sum(axis=1)
+
+
+# ---------------------------------------------------------------------------------------------
+# Residual spectra: c minus the contributions of estimated paths (SAGE E-step, SIC)
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True, parallel=True)
+def residual_kernel(spectrum, power, tx_index, n0, w, dist, gain, out):
+    """``out[i] = c_i − Σ_p |S_n|² α_{ip}^* e^{+jwn d_{ip}}`` (``dist, gain [n_links, P]``)."""
+    n_links, P = dist.shape
+    for i in prange(n_links):
+        for k in range(spectrum.shape[1]):
+            out[i, k] = spectrum[i, k]
+        for p in range(P):
+            _add_path(out[i], power[tx_index[i]], n0, w, dist[i, p], -np.conj(gain[i, p]))
+
+
+def residual_numpy(spectrum, power, tx_index, n0, w, dist, gain):
+    """Plain-NumPy twin of :func:`residual_kernel` (returns the array)."""
+    n = n0 + np.arange(spectrum.shape[1], dtype=np.float64)
+    phase = np.exp(1j * w * dist[:, :, None] * n[None, None, :])  # [n_links, P, N]
+    contrib = (np.conj(gain)[:, :, None] * phase).sum(axis=1) * power[tx_index]
+    return spectrum - contrib
+
+
+# ---------------------------------------------------------------------------------------------
+# SAGE sweeps (Fessler & Hero 1994; Fleury et al. 1999), per link
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _sage_link(c, power, energy, n0, w, d, a, n_active, n_iter, spacing, n_search, n_newton):
+    """``n_iter`` SAGE sweeps over the first ``n_active`` paths of one link (the others are
+    ignored: not subtracted, not updated); updates ``d`` and ``a`` in place.
+
+    E-step ``x_l = c − Σ_{k≠l} |S|² α_k^* e^{jwnd_k}`` (the residual plus path l), M-step
+    ``d_l = argmax |F_x(d)|²`` over ``d_l + m·spacing``, ``|m| <= n_search``, refined by
+    ``n_newton`` Newton steps, then ``α_l = F_x(d_l)^*/‖S‖²``.
+    """
+    e = c.copy()
+    for p in range(n_active):
+        _add_path(e, power, n0, w, d[p], -np.conj(a[p]))
+    for _ in range(n_iter):
+        for p in range(n_active):
+            _add_path(e, power, n0, w, d[p], np.conj(a[p]))  # e is now x_l
+            best = d[p]
+            best_g = -1.0
+            for m in range(-n_search, n_search + 1):
+                dm = d[p] + m * spacing
+                F = _correlate(e, n0, w, dm)
+                g = F.real**2 + F.imag**2
+                if g > best_g:
+                    best_g = g
+                    best = dm
+            dn = _newton_peak(e, n0, w, best, spacing, n_newton)
+            F = _correlate(e, n0, w, dn)
+            d[p] = dn
+            a[p] = np.conj(F) / energy
+            _add_path(e, power, n0, w, d[p], -np.conj(a[p]))  # back to the residual
+
+
+@njit(cache=True, parallel=True)
+def sage_kernel(
+    spectrum,
+    power,
+    tx_index,
+    energy,
+    n0,
+    w,
+    dist,
+    gain,
+    n_active,
+    n_iter,
+    spacing,
+    n_search,
+    n_newton,
+):
+    """SAGE sweeps for every link (parallel over links; each writes its own rows of
+    ``dist``/``gain`` ``[n_links, P]``, updated in place from their initial values). Only the
+    first ``n_active[i]`` paths of link i take part."""
+    for i in prange(dist.shape[0]):
+        _sage_link(
+            spectrum[i],
+            power[tx_index[i]],
+            energy[i],
+            n0,
+            w,
+            dist[i],
+            gain[i],
+            n_active[i],
+            n_iter,
+            spacing,
+            n_search,
+            n_newton,
+        )
+
+
+def _correlate_numpy(x, n, w, d):
+    e = x * np.exp(-1j * w * n * d)
+    return e.sum(), (n * e).sum(), (n * n * e).sum()
+
+
+def sage_numpy(
+    spectrum,
+    power,
+    tx_index,
+    energy,
+    n0,
+    w,
+    dist,
+    gain,
+    n_active,
+    n_iter,
+    spacing,
+    n_search,
+    n_newton,
+):
+    """Plain-NumPy twin of :func:`sage_kernel` (returns new ``dist, gain``)."""
+    dist = np.array(dist, dtype=np.float64)
+    gain = np.array(gain, dtype=np.complex128)
+    n = n0 + np.arange(spectrum.shape[1], dtype=np.float64)
+
+    def contrib(i, d, a):
+        return power[tx_index[i]] * np.conj(a) * np.exp(1j * w * n * d)
+
+    for i in range(dist.shape[0]):
+        d, a, P = dist[i], gain[i], int(n_active[i])
+        e = spectrum[i] - sum((contrib(i, d[p], a[p]) for p in range(P)), 0j)
+        for _ in range(n_iter):
+            for p in range(P):
+                e = e + contrib(i, d[p], a[p])
+                cand = d[p] + spacing * np.arange(-n_search, n_search + 1)
+                g = np.abs(np.exp(-1j * w * np.outer(cand, n)) @ e) ** 2
+                d0 = cand[int(np.argmax(g))]
+                dn = d0
+                for _k in range(n_newton):
+                    T0, T1, T2 = _correlate_numpy(e, n, w, dn)
+                    F1, F2 = -1j * w * T1, -(w * w) * T2
+                    g1 = 2.0 * (np.conj(T0) * F1).real
+                    g2 = 2.0 * (abs(F1) ** 2 + (np.conj(T0) * F2).real)
+                    if not g2 < 0.0:
+                        break
+                    step = float(np.clip(-g1 / g2, -0.5 * spacing, 0.5 * spacing))
+                    dn += step
+                    if abs(step) < 1e-9 * spacing:
+                        break
+                if abs(dn - d0) > spacing:
+                    dn = d0
+                d[p] = dn
+                a[p] = np.conj(_correlate_numpy(e, n, w, dn)[0]) / energy[i]
+                e = e - contrib(i, d[p], a[p])
+    return dist, gain
