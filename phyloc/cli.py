@@ -3,6 +3,8 @@
 Commands
     ``phyloc bench [phy|channels|all] [--quick] [--json PATH]``
         Run benchmarks; print cost per unit of work and ratios to references.
+    ``phyloc evaluate RECIPE [--fast] [--out DIR] [--json PATH] [--workers N | --scheduler ADDR]``
+        Run an experiment recipe; write ``results.json``, the recipe and a PNG into DIR.
     ``phyloc channel-stats SCENARIO [--square SIDE_M] [--links N] [--seed S] [--png PATH]
     [--json PATH]``
         Draw links of a channel scenario and compare realized statistics with its table.
@@ -22,6 +24,7 @@ from phyloc.errors import PhylocError
 BENCHMARKS = {
     "phy": "phyloc.benchmarks.bench_phy",
     "channels": "phyloc.benchmarks.bench_channels",
+    "ranging": "phyloc.benchmarks.bench_ranging",
 }
 
 
@@ -53,6 +56,34 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true", help="shorter runs (less precise)")
     _add_json(b)
     b.set_defaults(func=cmd_bench)
+
+    e = sub.add_parser("evaluate", help="run an experiment recipe (datasets/*.toml)")
+    e.add_argument("recipe", help="path of a recipe TOML file")
+    e.add_argument(
+        "--fast", action="store_true", help="the recipe's [experiment.fast] setting (small, for CI)"
+    )
+    e.add_argument(
+        "--out",
+        metavar="DIR",
+        default=None,
+        help="results folder (default results/<recipe name>[-fast])",
+    )
+    e.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="run tasks on a local Dask cluster of N processes (default: in-process)",
+    )
+    e.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run tasks on an existing Dask scheduler",
+    )
+    e.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_json(e)
+    e.set_defaults(func=cmd_evaluate)
 
     c = sub.add_parser(
         "channel-stats",
@@ -148,6 +179,55 @@ def _generic_table(fig: dict) -> str:
     from phyloc.reporting import format_table
 
     return format_table([(k, v) for k, v in fig.items()], ["figure", "value"])
+
+
+# -- evaluate --------------------------------------------------------------------------------
+EXPERIMENTS = {
+    "ranging": "phyloc.evaluation.ranging_experiment",
+    "localization": "phyloc.evaluation.localization_experiment",
+}
+
+
+def cmd_evaluate(args) -> int:
+    """``phyloc evaluate``: run a recipe, print its table, write the results folder."""
+    from pathlib import Path
+
+    from phyloc.config import load_recipe
+    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+
+    recipe = load_recipe(args.recipe)
+    exp = importlib.import_module(EXPERIMENTS[recipe.kind])
+    out = Path(args.out or Path("results") / (recipe.name + ("-fast" if args.fast else "")))
+    if out.exists() and any(out.iterdir()) and not args.force:
+        raise OutputExistsError(out)
+    if args.json and Path(args.json).exists() and not args.force:
+        raise OutputExistsError(args.json)
+    t0 = time.perf_counter()
+    res = exp.run(
+        recipe,
+        fast=args.fast,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+    )
+    res["meta"].update(
+        {"seconds": time.perf_counter() - t0, "machine": machine_meta(), "recipe_text": recipe.text}
+    )
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / "results.json", res["figures"], res["meta"], res["series"], force=True)
+    (out / "recipe.toml").write_text(recipe.text)
+    png = out / f"{recipe.name}.png"
+    exp.plot(res, png)
+    print(f"{recipe.name}{' (fast)' if args.fast else ''}: {res['meta']['seconds']:.1f} s")
+    headers = exp.summary_headers(res) if hasattr(exp, "summary_headers") else exp.SUMMARY_HEADERS
+    print(format_table(exp.summary_rows(res), headers))
+    for line in getattr(exp, "summary_lines", lambda r: [])(res):
+        print(line)
+    print(f"wrote {out / 'results.json'}, {png}")
+    if args.json:
+        write_json(args.json, res["figures"], res["meta"], res["series"], force=args.force)
+        print(f"wrote {args.json}")
+    return 0
 
 
 # -- channel-stats ---------------------------------------------------------------------------

@@ -8,7 +8,8 @@ frozen dataclasses (``[system]`` → :class:`~phyloc.phy.OFDMSystem`, ``[channel
 validated by their consumers' ``from_dict`` through :meth:`Recipe.section`.
 
 Top-level keys
-    ``kind``  what the recipe runs: ``"ranging"`` (ranging RMSE versus bounds, DiPNet Fig. 4);
+    ``kind``  what the recipe runs: ``"ranging"`` (ranging RMSE versus bounds, DiPNet Fig. 4) or
+              ``"localization"`` (direct versus two-step localization, DiPNet Fig. 5);
     ``name``  a short identifier (results folder name, figure prefixes);
     ``seed``  the one seed of all randomness (per-task streams come from ``SeedSequence.spawn``);
     ``description``  free text.
@@ -23,7 +24,7 @@ from pathlib import Path
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.phy.system import OFDMSystem, check_keys
 
-KINDS = ("ranging",)
+KINDS = ("ranging", "localization")
 TOP_LEVEL = ("kind", "name", "seed", "description")
 SECTIONS = ("system", "network", "channel", "ranging", "experiment", "localization", "dataset")
 

@@ -1,0 +1,480 @@
+"""Direct versus two-step network localization (DiPNet Fig. 5).
+
+A recipe of ``kind = "localization"`` runs, for every scenario token, network size and
+realization: a network (``[network]``, anchor-free and fully meshed in the paper), channel draws,
+received signals and correlation tables, the range estimators, and then every method of
+``experiment.methods`` under every initialization of ``experiment.inits`` — all on the *same*
+waveforms and, per initialization, from the *same* prior particles:
+
+``dipnet``            DiPNet with phyloc's safeguards (adaptive tempering, resample-move,
+                      covariance floor; :class:`~phyloc.localization.DPFOptions`)
+``dipnet_published``  Algorithm 1 as published (no safeguards)
+``corr`` / ``first_peak`` / ``sage``   the two-step EL-DPF on that estimator's ranges with the
+                      ZZB ranging variance (DiPNet §V-A), same safeguards as ``dipnet``
+``sage_los``          SAGE on LOS links only — an oracle benchmark (ground-truth NLOS rejection)
+
+Initializations (labelled in every figure name):
+
+``truth_free`` (token ``<s>``)  Gaussian priors around a coarse two-step solution (MDS → SMACOF
+                      on the correlation-peak ranges; anchors fix the frame when present)
+``informed`` (``<s>_informed``)  Gaussian priors around the truth plus N(0, σ0²) — an informed
+                      start, not a truth-free result
+``gauge`` (``<s>_gauge``)  the paper's uninformative anchor-free gauge priors (shows the pitfall)
+
+Figures: ``<method>.<token>.agents_<n>.framework_rmse_m`` (eq. (4), pooled over realizations),
+``<method>.<token>.agents_<n>.shape_difference_m`` (eq. (1)),
+``<method>.<token>.agents_<n>.ess_min`` (smallest effective sample size of any agent in any
+iteration, mean over runs),
+``<method>.runtime_per_agent_iteration_s``, ``<s>.link_bias.<los|nlos>_mean_m`` (correlation-peak
+range bias). Series: error CDFs at ``experiment.cdf_agents``, and per iteration at the largest
+network: mean ESS, published std ``sqrt(tr C/dim)`` and actual error of the published means.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from phyloc import _validate as v
+from phyloc.channels import ChannelSpec
+from phyloc.config import Recipe
+from phyloc.errors import ValidationError
+from phyloc.evaluation.metrics import framework_distance_errors, shape_difference
+from phyloc.evaluation.ranging_experiment import RangingSpec
+from phyloc.evaluation.runner import run_tasks
+from phyloc.localization import (
+    DirectLikelihood,
+    DPFOptions,
+    GaussianRangeLikelihood,
+    Prior,
+    coarse_positions,
+    gauge_log_prior,
+    gauge_priors,
+    gaussian_log_prior,
+    gaussian_priors,
+    informed_centers,
+    run_dpf,
+)
+from phyloc.network import NetworkSpec, make_network
+from phyloc.phy.correlation import correlation_tables
+from phyloc.phy.synthesis import synthesize
+from phyloc.phy.system import check_keys
+from phyloc.phy.waveform import qpsk_symbols
+from phyloc.ranging import estimate
+
+METHODS = ("dipnet", "dipnet_published", "corr", "first_peak", "sage", "sage_los")
+TWO_STEP = ("corr", "first_peak", "sage", "sage_los")
+INITS = {"truth_free": "", "informed": "_informed", "gauge": "_gauge"}
+CDF_GRID_M = np.linspace(0.0, 30.0, 301)
+
+
+@dataclass(frozen=True)
+class LocalizationSpec:
+    """``[localization]``: filter options (:class:`DPFOptions` fields) and priors.
+
+    ``prior_std_m`` std of the truth-free Gaussian priors around the coarse solution [m];
+    ``informed_std_m`` σ0 of the informed start [m]; ``gauge_extent_m`` half-width of the
+    uniform gauge priors [m].
+    """
+
+    dpf: DPFOptions = field(default_factory=DPFOptions)
+    prior_std_m: float = 10.0
+    informed_std_m: float = 10.0
+    gauge_extent_m: float = 150.0
+
+    def __post_init__(self):
+        v.positive("localization.prior_std_m", self.prior_std_m)
+        v.positive("localization.informed_std_m", self.informed_std_m)
+        v.positive("localization.gauge_extent_m", self.gauge_extent_m)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> LocalizationSpec:
+        """From ``[localization]``; the DPF keys are those of :class:`DPFOptions`."""
+        d = dict(d)
+        own = {k: d.pop(k) for k in ("prior_std_m", "informed_std_m", "gauge_extent_m") if k in d}
+        dpf_keys = [f.name for f in dataclasses.fields(DPFOptions)]
+        check_keys(
+            d, [*dpf_keys, "prior_std_m", "informed_std_m", "gauge_extent_m"], "localization"
+        )
+        return cls(dpf=DPFOptions(**d), **own)
+
+    def options(self, method: str) -> DPFOptions:
+        """The filter options of a method (the published variant drops every safeguard)."""
+        if method == "dipnet_published":
+            return DPFOptions.published(
+                n_particles=self.dpf.n_particles,
+                n_iterations=self.dpf.n_iterations,
+                interpolation=self.dpf.interpolation,
+            )
+        return self.dpf
+
+
+@dataclass(frozen=True)
+class LocalizationExperimentSpec:
+    """``[experiment]`` of a localization recipe (``[experiment.fast]`` for ``--fast``)."""
+
+    scenarios: dict = field(default_factory=lambda: {"c2": "winner2_c2", "d1": "winner2_d1"})
+    agents: tuple = (3, 6, 9, 12, 15, 18, 21, 24, 27, 30)
+    realizations: int = 10
+    methods: tuple = METHODS
+    inits: tuple = ("truth_free", "informed")
+    cdf_agents: tuple = (3, 30)
+
+    def __post_init__(self):
+        if not isinstance(self.scenarios, dict) or not self.scenarios:
+            raise ValidationError("experiment.scenarios", self.scenarios, "token = scenario name")
+        agents = tuple(v.integer("experiment.agents", a, minimum=2) for a in self.agents)
+        if not agents:
+            raise ValidationError("experiment.agents", [], "at least one size >= 2")
+        object.__setattr__(self, "agents", agents)
+        v.integer("experiment.realizations", self.realizations, minimum=1)
+        for m in self.methods:
+            if m not in METHODS:
+                raise ValidationError("experiment.methods", m, f"each one of {', '.join(METHODS)}")
+        for i in self.inits:
+            if i not in INITS:
+                raise ValidationError("experiment.inits", i, f"each one of {', '.join(INITS)}")
+        object.__setattr__(self, "methods", tuple(self.methods))
+        object.__setattr__(self, "inits", tuple(self.inits))
+        object.__setattr__(self, "cdf_agents", tuple(int(a) for a in self.cdf_agents))
+
+    @classmethod
+    def from_dict(cls, d: dict, *, fast: bool = False) -> LocalizationExperimentSpec:
+        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
+        d = dict(d)
+        fast_over = d.pop("fast", {})
+        names = [f.name for f in dataclasses.fields(cls)]
+        check_keys(d, [*names, "fast"], "experiment")
+        check_keys(fast_over, names, "experiment.fast")
+        if fast:
+            d.update(fast_over)
+        return cls(**d)
+
+
+def _priors(init, net, links, corr, lspec, rng):
+    """Prior particles and log density of one initialization (agents only)."""
+    agents = net.agent_index
+    Q = lspec.dpf.n_particles
+    pos = net.positions[0]
+    if init == "gauge":
+        X = gauge_priors(agents.size, net.dim, Q, lspec.gauge_extent_m, rng)
+        ext = lspec.gauge_extent_m
+        return Prior(X, lambda x: gauge_log_prior(x, ext), "uninformative gauge priors")
+    if init == "informed":
+        centers = informed_centers(pos[agents], lspec.informed_std_m, rng=rng)
+        std, label = lspec.informed_std_m, "informed start"
+    else:
+        sol = coarse_positions(
+            links,
+            corr.range_m,
+            net.n_nodes,
+            net.dim,
+            valid=corr.valid,
+            is_anchor=net.is_anchor,
+            anchor_positions=pos[net.is_anchor] if net.n_anchors else None,
+        )
+        centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
+    X = gaussian_priors(centers, std, Q, rng)
+    return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label)
+
+
+def _task(payload, seed_seq):
+    system, net_spec, chan_spec, rspec, lspec, methods, inits = payload
+    streams = seed_seq.spawn(2 + len(inits) * (1 + len(methods)))
+    rng = np.random.default_rng(streams[0])
+    net = make_network(net_spec, rng)
+    links = net.links
+    d = net.distances(0)
+    draw = chan_spec.draw(d, rng, system=system)
+    ways = 2 if chan_spec.ranging == "two_way" else 1
+    symbols = qpsk_symbols(system, net.n_nodes, rng)
+    tx = links[:, 1]
+    R = synthesize(draw.paths, symbols, system, rng, tx_index=tx)
+    table = correlation_tables(R, symbols, system, beta=rspec.beta, tx_index=tx)
+    ests = {}
+    for m in {"corr", *[m for m in methods if m in TWO_STEP]}:
+        name = "sage" if m == "sage_los" else m
+        if name not in ests:
+            ests[name] = estimate(name, table, **rspec.method_options(name))
+    if "sage_los" in methods:
+        ests["sage_los"] = estimate("sage_los", table, los=draw.los, **rspec.method_options("sage"))
+    if ways != 1:  # two-way tables measure the round trip
+        ests = {
+            k: dataclasses.replace(e, range_m=e.range_m / ways, variance_m2=e.variance_m2 / ways**2)
+            for k, e in ests.items()
+        }
+    agent_of = -np.ones(net.n_nodes, np.int64)
+    agent_of[net.agent_index] = np.arange(net.n_agents)
+    truth = net.positions[0]
+    out = {
+        "link_err_corr": ests["corr"].range_m - d,
+        "link_valid_corr": ests["corr"].valid,
+        "los": np.asarray(draw.los, bool),
+    }
+    s = 2
+    for init in inits:
+        prior = _priors(init, net, links, ests["corr"], lspec, np.random.default_rng(streams[s]))
+        s += 1
+        for m in methods:
+            rng_m = np.random.default_rng(streams[s])
+            s += 1
+            if m.startswith("dipnet"):
+                lik = DirectLikelihood(
+                    table,
+                    links,
+                    agent_of,
+                    net.n_agents,
+                    interpolation=lspec.dpf.interpolation,
+                    window_m=rspec.window_m,
+                    ways=ways,
+                )
+            else:
+                e = ests[m]
+                lik = GaussianRangeLikelihood(
+                    e.range_m, e.variance_m2, e.valid, links, agent_of, net.n_agents
+                )
+            res = run_dpf(lik, prior, truth, net.is_anchor, rng_m, lspec.options(m))
+            est = res.means
+            key = f"{m}|{init}"
+            out[key + "|err"] = framework_distance_errors(est, truth, net.is_anchor)
+            out[key + "|shape"] = shape_difference(est, truth, net.is_anchor)
+            out[key + "|ess"] = res.ess_history.mean(axis=1)
+            out[key + "|ess_min"] = float(res.ess_history.min())
+            dim = net.dim
+            out[key + "|published_std"] = np.sqrt(res.cov_trace_history.mean(axis=1) / dim)
+            out[key + "|actual_err"] = np.array(
+                [shape_difference(mk, truth, net.is_anchor) for mk in res.mean_history]
+            ) / math.sqrt(dim)
+            out[key + "|sec_per_agent_it"] = res.seconds / max(res.agent_iterations, 1)
+    return out
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "localization"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    system = recipe.system
+    exp = LocalizationExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
+    rspec = recipe.section("ranging", RangingSpec)
+    lspec = recipe.section("localization", LocalizationSpec)
+    net_raw = dict(recipe.section("network"))
+    chan = recipe.section("channel", ChannelSpec)
+    nets = {n: NetworkSpec.from_dict({**net_raw, "n_agents": n}) for n in exp.agents}
+    specs = {tok: dataclasses.replace(chan, scenario=name) for tok, name in exp.scenarios.items()}
+    for tok, spec in specs.items():
+        try:
+            spec.load()
+        except ValidationError as exc:
+            raise ValidationError(f"experiment.scenarios.{tok}", exc.value, exc.allowed) from None
+    payloads, keys = [], []
+    for tok, spec in specs.items():
+        for n in exp.agents:
+            for r in range(exp.realizations):
+                payloads.append((system, nets[n], spec, rspec, lspec, exp.methods, exp.inits))
+                keys.append((tok, n, r))
+    results = run_tasks(
+        _task,
+        payloads,
+        recipe.seed,
+        workers=workers,
+        scheduler=scheduler,
+        desc="localization",
+        progress=progress,
+    )
+    figures: dict[str, float] = {}
+    series: dict[str, object] = {"cdf_grid_m": CDF_GRID_M}
+    n_max = max(exp.agents)
+    for tok in specs:
+        parts = [res for (t, _, _), res in zip(keys, results, strict=True) if t == tok]
+        le = np.concatenate([p["link_err_corr"] for p in parts])
+        lv = np.concatenate([p["link_valid_corr"] for p in parts])
+        los = np.concatenate([p["los"] for p in parts])
+        figures[f"{tok}.los_fraction"] = float(los.mean())
+        for cond, mask in (("los", los), ("nlos", ~los)):
+            sel = lv & mask
+            figures[f"{tok}.link_bias.{cond}_mean_m"] = (
+                float(le[sel].mean()) if sel.any() else float("nan")
+            )
+        for init in exp.inits:
+            tag = tok + INITS[init]
+            for m in exp.methods:
+                key = f"{m}|{init}"
+                for n in exp.agents:
+                    runs = [
+                        res
+                        for (t, nn, _), res in zip(keys, results, strict=True)
+                        if t == tok and nn == n
+                    ]
+                    err = np.concatenate([r[key + "|err"] for r in runs])
+                    base = f"{m}.{tag}.agents_{n}"
+                    figures[base + ".framework_rmse_m"] = float(math.sqrt(np.mean(err**2)))
+                    figures[base + ".shape_difference_m"] = float(
+                        math.sqrt(np.mean([r[key + "|shape"] ** 2 for r in runs]))
+                    )
+                    figures[base + ".ess_min"] = float(np.mean([r[key + "|ess_min"] for r in runs]))
+                    if n in exp.cdf_agents:
+                        series[base + ".error_cdf"] = (
+                            np.searchsorted(np.sort(err), CDF_GRID_M, side="right") / err.size
+                        )
+                    if n == n_max:
+                        for what in ("ess", "published_std", "actual_err"):
+                            series[f"{base}.{what}_by_iteration"] = np.mean(
+                                [r[f"{key}|{what}"] for r in runs], axis=0
+                            )
+        for m in exp.methods:
+            figures[f"{m}.runtime_per_agent_iteration_s"] = float(
+                np.mean([r[f"{m}|{i}|sec_per_agent_it"] for r in results for i in exp.inits])
+            )
+    meta = {
+        "recipe": recipe.name,
+        "kind": recipe.kind,
+        "seed": recipe.seed,
+        "fast": fast,
+        "agents": list(exp.agents),
+        "realizations": exp.realizations,
+        "scenarios": dict(exp.scenarios),
+        "methods": list(exp.methods),
+        "inits": {i: i.replace("_", "-") for i in exp.inits},
+        "labels": {
+            "informed": "informed start (truth + N(0, σ0²))",
+            "gauge": "uninformative gauge priors",
+            "truth_free": "truth-free",
+            "sage_los": "oracle: NLOS links rejected by ground truth",
+        },
+        "n_particles": lspec.dpf.n_particles,
+        "n_iterations": lspec.dpf.n_iterations,
+    }
+    return {"figures": figures, "series": series, "meta": meta}
+
+
+SUMMARY_HEADERS = ["scenario", "method"]
+
+
+def summary_rows(results: dict):
+    """Framework RMSE [m] per method and scenario token (columns: network sizes)."""
+    f, meta = results["figures"], results["meta"]
+    rows = []
+    for tok in meta["scenarios"]:
+        for init in meta["inits"]:
+            tag = tok + INITS[init]
+            for m in meta["methods"]:
+                name = f"{m} (oracle)" if m == "sage_los" else m
+                rows.append(
+                    (
+                        tag,
+                        name,
+                        *[f[f"{m}.{tag}.agents_{n}.framework_rmse_m"] for n in meta["agents"]],
+                    )
+                )
+    return rows
+
+
+def summary_headers(results: dict):
+    """Headers of :func:`summary_rows`."""
+    return [*SUMMARY_HEADERS, *[f"{n} agents" for n in results["meta"]["agents"]]]
+
+
+def summary_lines(results: dict):
+    """ESS and runtime lines."""
+    f, meta = results["figures"], results["meta"]
+    n = max(meta["agents"])
+    out = ["framework distance RMSE [m] (DiPNet eq. (4)); informed-start rows are not truth-free"]
+    for tok in meta["scenarios"]:
+        for init in meta["inits"]:
+            tag = tok + INITS[init]
+            ess = ", ".join(
+                f"{m} {f[f'{m}.{tag}.agents_{n}.ess_min']:.0f}"
+                for m in meta["methods"]
+                if m.startswith("dipnet")
+            )
+            out.append(f"{tag}, {n} agents, smallest ESS: {ess} (of {meta['n_particles']})")
+    rt = ", ".join(
+        f"{m} {1e6 * f[f'{m}.runtime_per_agent_iteration_s']:.0f} µs" for m in meta["methods"]
+    )
+    out.append(f"runtime per agent-iteration: {rt}")
+    return out
+
+
+def plot(results: dict, path) -> None:
+    """DiPNet Fig. 5 layout from results only: RMSE vs agents per scenario, CDFs, ESS."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    f, ser, meta = results["figures"], results["series"], results["meta"]
+    toks = list(meta["scenarios"])
+    fig = Figure(figsize=(4.6 * len(toks) + 4.6, 8.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(2, len(toks) + 1, squeeze=False)
+    agents = meta["agents"]
+    for j, tok in enumerate(toks):
+        ax = axes[0, j]
+        for init in meta["inits"]:
+            tag = tok + INITS[init]
+            ls = "-" if init == "truth_free" else ("--" if init == "informed" else ":")
+            for i, m in enumerate(meta["methods"]):
+                y = [f[f"{m}.{tag}.agents_{n}.framework_rmse_m"] for n in agents]
+                ax.semilogy(
+                    agents, y, ls, marker="os^vdx"[i % 6], color=f"C{i}", label=f"{m} ({init})"
+                )
+        ax.set_title(f"{tok}: framework distance RMSE")
+        ax.set_xlabel("number of agents")
+        ax.set_ylabel("RMSE [m]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+        ax = axes[1, j]
+        for n, ls in zip(
+            sorted({*meta["agents"]} & set(_cdf_sizes(ser, meta, tok))), ("-", "--"), strict=False
+        ):
+            for i, m in enumerate(meta["methods"]):
+                k = f"{m}.{tok}.agents_{n}.error_cdf"
+                if k in ser:
+                    ax.plot(ser["cdf_grid_m"], ser[k], ls, color=f"C{i}", label=f"{m}, {n} agents")
+        ax.set_title(f"{tok} (truth-free): error CDF")
+        ax.set_xlabel("absolute framework distance error [m]")
+        ax.set_ylabel("CDF")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=6)
+    n = max(agents)
+    ax = axes[0, -1]
+    ax2 = axes[1, -1]
+    tok = toks[0]
+    for i, m in enumerate(meta["methods"]):
+        if not m.startswith("dipnet"):
+            continue
+        for init in meta["inits"]:
+            base = f"{m}.{tok}{INITS[init]}.agents_{n}"
+            if f"{base}.ess_by_iteration" in ser:
+                ax.semilogy(ser[f"{base}.ess_by_iteration"], color=f"C{i}", label=f"{m} ({init})")
+                ax2.semilogy(
+                    ser[f"{base}.published_std_by_iteration"],
+                    "--",
+                    color=f"C{i}",
+                    label=f"{m} ({init}) published std",
+                )
+                ax2.semilogy(
+                    ser[f"{base}.actual_err_by_iteration"],
+                    "-",
+                    color=f"C{i}",
+                    label=f"{m} ({init}) actual error",
+                )
+    ax.set_title(f"{tok}, {n} agents: mean ESS per iteration")
+    ax.set_xlabel("iteration")
+    ax.legend(fontsize=6)
+    ax.grid(True, which="both", alpha=0.3)
+    ax2.set_title("published std vs actual error per axis [m]")
+    ax2.set_xlabel("iteration")
+    ax2.legend(fontsize=6)
+    ax2.grid(True, which="both", alpha=0.3)
+    fig.suptitle(
+        f"Direct vs two-step localization — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
+    )
+    fig.savefig(path, dpi=100)
+
+
+def _cdf_sizes(ser, meta, tok):
+    return [
+        n
+        for n in meta["agents"]
+        if any(f"{m}.{tok}.agents_{n}.error_cdf" in ser for m in meta["methods"])
+    ]
