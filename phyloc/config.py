@@ -9,7 +9,8 @@ validated by their consumers' ``from_dict`` through :meth:`Recipe.section`.
 
 Top-level keys
     ``kind``  what the recipe runs: ``"ranging"`` (ranging RMSE versus bounds, DiPNet Fig. 4) or
-              ``"localization"`` (direct versus two-step localization, DiPNet Fig. 5);
+              ``"localization"`` (direct versus two-step localization, DiPNet Fig. 5) or
+              ``"dataset"`` (waveforms for ``phyloc generate``);
     ``name``  a short identifier (results folder name, figure prefixes);
     ``seed``  the one seed of all randomness (per-task streams come from ``SeedSequence.spawn``);
     ``description``  free text.
@@ -24,7 +25,7 @@ from pathlib import Path
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.phy.system import OFDMSystem, check_keys
 
-KINDS = ("ranging", "localization")
+KINDS = ("ranging", "localization", "dataset")
 TOP_LEVEL = ("kind", "name", "seed", "description")
 SECTIONS = ("system", "network", "channel", "ranging", "experiment", "localization", "dataset")
 

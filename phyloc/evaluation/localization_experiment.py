@@ -41,6 +41,7 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe
+from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.metrics import framework_distance_errors, shape_difference
 from phyloc.evaluation.ranging_experiment import RangingSpec
@@ -58,11 +59,9 @@ from phyloc.localization import (
     informed_centers,
     run_dpf,
 )
-from phyloc.network import NetworkSpec, make_network
+from phyloc.network import NetworkSpec
 from phyloc.phy.correlation import correlation_tables
-from phyloc.phy.synthesis import synthesize
 from phyloc.phy.system import check_keys
-from phyloc.phy.waveform import qpsk_symbols
 from phyloc.ranging import estimate
 
 METHODS = ("dipnet", "dipnet_published", "corr", "first_peak", "sage", "sage_los")
@@ -184,16 +183,13 @@ def _priors(init, net, links, corr, lspec, rng):
 def _task(payload, seed_seq):
     system, net_spec, chan_spec, rspec, lspec, methods, inits = payload
     streams = seed_seq.spawn(2 + len(inits) * (1 + len(methods)))
-    rng = np.random.default_rng(streams[0])
-    net = make_network(net_spec, rng)
-    links = net.links
+    real = simulate_realization(system, net_spec, chan_spec, np.random.default_rng(streams[0]))
+    net, links, draw = real.network, real.links[0], real.channels[0]
     d = net.distances(0)
-    draw = chan_spec.draw(d, rng, system=system)
-    ways = 2 if chan_spec.ranging == "two_way" else 1
-    symbols = qpsk_symbols(system, net.n_nodes, rng)
     tx = links[:, 1]
-    R = synthesize(draw.paths, symbols, system, rng, tx_index=tx)
-    table = correlation_tables(R, symbols, system, beta=rspec.beta, tx_index=tx)
+    table = correlation_tables(real.received[0], real.symbols, system, beta=rspec.beta,
+                               tx_index=tx)
+    ways = real.ways
     ests = {}
     for m in {"corr", *[m for m in methods if m in TWO_STEP]}:
         name = "sage" if m == "sage_los" else m

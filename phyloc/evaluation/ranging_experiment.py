@@ -37,9 +37,10 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe
+from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.runner import run_tasks
-from phyloc.network import NetworkSpec, make_network
+from phyloc.network import NetworkSpec
 from phyloc.phy import C0, OFDMSystem, PathSet
 from phyloc.phy.bounds import crb_range, zzb_range
 from phyloc.phy.correlation import correlation_tables
@@ -150,16 +151,13 @@ class RangingExperimentSpec:
 def _task(payload, seed_seq):
     """One network realization of one scenario: ranging errors of every method on every link."""
     system, net_spec, chan_spec, rspec = payload
-    rng = np.random.default_rng(seed_seq)
-    net = make_network(net_spec, rng)
+    real = simulate_realization(system, net_spec, chan_spec, np.random.default_rng(seed_seq))
+    net, links, draw = real.network, real.links[0], real.channels[0]
     d = net.distances(0)
-    draw = chan_spec.draw(d, rng, system=system)
-    links = net.links
-    symbols = qpsk_symbols(system, net.n_nodes, rng)
     tx = links[:, 1]
-    R = synthesize(draw.paths, symbols, system, rng, tx_index=tx)
-    table = correlation_tables(R, symbols, system, beta=rspec.beta, tx_index=tx)
-    ways = 2 if chan_spec.ranging == "two_way" else 1
+    table = correlation_tables(real.received[0], real.symbols, system, beta=rspec.beta,
+                               tx_index=tx)
+    ways = real.ways
     out = {
         "distance_m": d,
         "los": np.asarray(draw.los, bool),

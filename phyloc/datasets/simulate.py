@@ -1,0 +1,68 @@
+"""One realization of a network's received waveforms: the composition every consumer shares.
+
+:func:`simulate_realization` is what ``phyloc generate`` stores and what ``phyloc evaluate``
+runs on when given a recipe instead of a dataset, so the two give identical signals for the
+same random stream. Random numbers are consumed in a fixed order: network (deployment and
+motion), then per snapshot the channel draw of every link, then the pilot symbols (once), then
+per snapshot the noise of every link.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from phyloc.channels import ChannelDraw, ChannelSpec
+from phyloc.network import Network, NetworkSpec, make_network
+from phyloc.phy.synthesis import synthesize
+from phyloc.phy.system import OFDMSystem
+from phyloc.phy.waveform import qpsk_symbols
+
+
+@dataclass(frozen=True, eq=False)
+class Realization:
+    """Received signals of every link of a network over its snapshots.
+
+    Attributes
+    ----------
+    network : Network
+    symbols : [n_nodes, N] complex128  pilot symbols of each node (transmitter)
+    links : list of [n_links_t, 2] int64  directed links (u receives from v) per snapshot
+    received : list of [n_links_t, N] complex128  frequency-domain received symbols ``R_n``
+    channels : list of ChannelDraw  the channel truth per snapshot
+    ways : int  1 (one-way) or 2 (two-way ranging: delays are round trips)
+    """
+
+    network: Network
+    symbols: np.ndarray
+    links: list
+    received: list
+    channels: list
+    ways: int
+
+    @property
+    def n_snapshots(self) -> int:
+        """Number of snapshots."""
+        return len(self.links)
+
+
+def simulate_realization(system: OFDMSystem, network: NetworkSpec, channel: ChannelSpec,
+                         rng: np.random.Generator) -> Realization:
+    """Draw a network, its channels and the received signals of all links and snapshots."""
+    net = make_network(network, rng)
+    links, draws = [], []
+    for t in range(net.n_snapshots):
+        lk = net.links_at(t)
+        links.append(lk)
+        draws.append(channel.draw(net.distances(t), rng, system=system))
+    symbols = qpsk_symbols(system, net.n_nodes, rng)
+    received = [
+        synthesize(d.paths, symbols, system, rng, tx_index=lk[:, 1])
+        for lk, d in zip(links, draws, strict=True)
+    ]
+    ways = 2 if channel.ranging == "two_way" else 1
+    return Realization(net, symbols, links, received, draws, ways)
+
+
+__all__ = ["ChannelDraw", "Realization", "simulate_realization"]
