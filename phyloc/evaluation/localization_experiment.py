@@ -6,9 +6,12 @@ received signals and correlation tables, the range estimators, and then every me
 ``experiment.methods`` under every initialization of ``experiment.inits`` — all on the *same*
 waveforms and, per initialization, from the *same* prior particles:
 
-``dipnet``            DiPNet with phyloc's safeguards (adaptive tempering, resample-move,
-                      covariance floor; :class:`~phyloc.localization.DPFOptions`)
-``dipnet_published``  Algorithm 1 as published (no safeguards)
+``dipnet``            DiPNet with phyloc's safeguards: the marginal equivalent likelihood
+                      (:class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`,
+                      eq. (22) marginalized over the neighbour's projected uncertainty instead
+                      of the ENV of eq. (26)), adaptive tempering, resample-move, covariance
+                      floor (:class:`~phyloc.localization.DPFOptions`)
+``dipnet_published``  Algorithm 1 as published: eqs. (25)–(28) with the ENV, no safeguards
 ``corr`` / ``first_peak`` / ``sage``   the two-step EL-DPF on that estimator's ranges with the
                       ZZB ranging variance (DiPNet §V-A), same safeguards as ``dipnet``
 ``sage_los``          SAGE on LOS links only — an oracle benchmark (ground-truth NLOS rejection)
@@ -59,6 +62,7 @@ from phyloc.localization import (
     informed_centers,
     run_dpf,
 )
+from phyloc.localization.likelihoods import MarginalDirectLikelihood
 from phyloc.network import NetworkSpec
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.system import check_keys
@@ -187,8 +191,7 @@ def _task(payload, seed_seq):
     net, links, draw = real.network, real.links[0], real.channels[0]
     d = net.distances(0)
     tx = links[:, 1]
-    table = correlation_tables(real.received[0], real.symbols, system, beta=rspec.beta,
-                               tx_index=tx)
+    table = correlation_tables(real.received[0], real.symbols, system, beta=rspec.beta, tx_index=tx)
     ways = real.ways
     ests = {}
     for m in {"corr", *[m for m in methods if m in TWO_STEP]}:
@@ -217,7 +220,11 @@ def _task(payload, seed_seq):
         for m in methods:
             rng_m = np.random.default_rng(streams[s])
             s += 1
-            if m.startswith("dipnet"):
+            if m == "dipnet":
+                lik = MarginalDirectLikelihood(
+                    table, links, agent_of, net.n_agents, window_m=rspec.window_m, ways=ways
+                )
+            elif m == "dipnet_published":
                 lik = DirectLikelihood(
                     table,
                     links,

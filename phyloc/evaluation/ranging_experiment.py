@@ -155,8 +155,7 @@ def _task(payload, seed_seq):
     net, links, draw = real.network, real.links[0], real.channels[0]
     d = net.distances(0)
     tx = links[:, 1]
-    table = correlation_tables(real.received[0], real.symbols, system, beta=rspec.beta,
-                               tx_index=tx)
+    table = correlation_tables(real.received[0], real.symbols, system, beta=rspec.beta, tx_index=tx)
     ways = real.ways
     out = {
         "distance_m": d,

@@ -12,6 +12,7 @@ import numpy as np
 from numba import njit, prange
 
 from phyloc.phy._kernels import _lagrange_eval
+from phyloc.ranging._kernels import _correlate_derivs, _newton_peak
 
 
 @njit(cache=True, parallel=True)
@@ -117,3 +118,93 @@ def systematic_resample_numpy(weights, u0, n):
     edges[-1] = max(edges[-1], 1.0)
     u = (np.arange(n) + u0) / n
     return np.minimum(np.searchsorted(edges, u, side="left"), weights.size - 1)
+
+
+# ---------------------------------------------------------------------------------------------
+# Marginal (peak-mixture) equivalent likelihood
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True, parallel=True)
+def mixture_loglik_kernel(
+    particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, ways, gamma, centers, out
+):
+    """``out[a, q] = γ Σ_j log(1 + Σ_i w_ij N(ways·‖x − c_j‖; d_ij, 1/c_ij + s²_j))`` (scaled).
+
+    The one-path likelihood ``exp(ℓ(d))`` of each link is represented by the Laplace
+    approximations of its peaks (distance ``d_i``, log height ``h_i``, curvature ``c_i`` of
+    ``ℓ``) plus the floor 1, and convolved with the neighbour's projected uncertainty
+    ``N(0, s²)`` along the distance axis (exact for each Gaussian component):
+    ``log(1 + Σ_i exp(h_i − ½log(1 + c_i s²) − (x − d_i)²/(2(1/c_i + s²))))``.
+    """
+    n_agents, Q, dim = particles.shape
+    max_p = 1
+    for j in range(pk_off.size - 1):
+        max_p = max(max_p, pk_off[j + 1] - pk_off[j])
+    for a in prange(n_agents):
+        base = np.empty(max_p)
+        half_prec = np.empty(max_p)
+        for q in range(Q):
+            out[a, q] = 0.0
+        for j in range(offsets[a], offsets[a + 1]):
+            c = centers[nb_node[j]]
+            p0 = pk_off[j]
+            n_p = pk_off[j + 1] - p0
+            for i in range(n_p):
+                ci = pk_c[p0 + i]
+                base[i] = pk_h[p0 + i] - 0.5 * np.log1p(ci * s2[j])
+                half_prec[i] = 0.5 / (1.0 / ci + s2[j])
+            for q in range(Q):
+                acc = 0.0
+                for k in range(dim):
+                    t = particles[a, q, k] - c[k]
+                    acc += t * t
+                x = ways * np.sqrt(acc)
+                best = 0.0  # the floor: exp(ℓ) >= 1 since ℓ = |f|²/(σ²‖S‖²) >= 0
+                for i in range(n_p):
+                    t = x - pk_d[p0 + i]
+                    e = base[i] - half_prec[i] * t * t
+                    if e > best:
+                        best = e
+                tot = np.exp(-best)
+                for i in range(n_p):
+                    t = x - pk_d[p0 + i]
+                    tot += np.exp(base[i] - half_prec[i] * t * t - best)
+                out[a, q] += gamma * (best + np.log(tot))
+
+
+def mixture_loglik_numpy(
+    particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, ways, gamma, centers
+):
+    """Plain-NumPy twin of :func:`mixture_loglik_kernel`."""
+    n_agents, Q, _ = particles.shape
+    out = np.zeros((n_agents, Q))
+    for a in range(n_agents):
+        for j in range(offsets[a], offsets[a + 1]):
+            x = ways * np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
+            sl = slice(pk_off[j], pk_off[j + 1])
+            v = 1.0 / pk_c[sl] + s2[j]
+            terms = (pk_h[sl] - 0.5 * np.log1p(pk_c[sl] * s2[j]))[None, :] - 0.5 * (
+                x[:, None] - pk_d[sl][None, :]
+            ) ** 2 / v[None, :]
+            terms = np.concatenate([np.zeros((Q, 1)), terms], axis=1)
+            m = terms.max(axis=1)
+            out[a] += gamma * (m + np.log(np.exp(terms - m[:, None]).sum(axis=1)))
+    return out
+
+
+@njit(cache=True, parallel=True)
+def peak_laplace_kernel(spectrum, rows, n0, w, d0, spacing, n_iter, inv_scale, out_d, out_h, out_c):
+    """Refine each peak of ``ℓ(d) = |F(d)|²·inv_scale`` from its grid maximum and return its
+    position, height ``ℓ`` and curvature ``−ℓ''`` (exact spectral derivatives)."""
+    for i in prange(d0.size):
+        x = spectrum[rows[i]]
+        d = _newton_peak(x, n0, w, d0[i], spacing, n_iter)
+        T0, T1, T2 = _correlate_derivs(x, n0, w, d)
+        F1r = w * T1.imag  # F' = −jw T1
+        F1i = -w * T1.real
+        F2r = -(w * w) * T2.real
+        F2i = -(w * w) * T2.imag
+        g = T0.real * T0.real + T0.imag * T0.imag
+        g2 = 2.0 * (F1r * F1r + F1i * F1i + T0.real * F2r + T0.imag * F2i)
+        out_d[i] = d
+        out_h[i] = g * inv_scale[i]
+        out_c[i] = max(-g2 * inv_scale[i], 1e-12)

@@ -348,30 +348,24 @@ def _anneal(X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options):
 
 
 def _next_lambda(lw, delta, lam, ess_target):
-    """Per agent, the largest λ' in (λ, 1] whose incremental weights keep ESS >= target."""
-    n_agents = lw.shape[0]
-    out = np.ones(n_agents)
-    for a in range(n_agents):
-        if lam[a] >= 1.0:
-            continue
+    """Per agent, the largest λ' in (λ, 1] whose incremental weights keep ESS >= target
+    (bisection on the step, all agents at once)."""
 
-        def ess(step, a=a):
-            w, _ = _normalize((lw[a] + step * delta[a])[None])
-            return float(_ess(w)[0])
+    def ess(step):
+        w, _ = _normalize(lw + step[:, None] * delta)
+        return _ess(w)
 
-        hi = 1.0 - lam[a]
-        if ess(hi) >= ess_target:
-            out[a] = 1.0
-            continue
-        lo = 0.0
-        for _ in range(30):
-            mid = 0.5 * (lo + hi)
-            if ess(mid) >= ess_target:
-                lo = mid
-            else:
-                hi = mid
-        out[a] = lam[a] + max(lo, 1e-6 * (1.0 - lam[a]))
-    return np.minimum(out, 1.0)
+    room = 1.0 - lam
+    full = ess(room) >= ess_target
+    lo = np.zeros_like(lam)
+    hi = room.copy()
+    for _ in range(30):
+        mid = 0.5 * (lo + hi)
+        ok = ess(mid) >= ess_target
+        lo = np.where(ok, mid, lo)
+        hi = np.where(ok, hi, mid)
+    step = np.where(full, room, np.maximum(lo, 1e-6 * room))
+    return np.where(lam >= 1.0, 1.0, np.minimum(lam + step, 1.0))
 
 
 def _resample(X, lw, rng, *arrays):

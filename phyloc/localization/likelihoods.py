@@ -18,6 +18,8 @@ v). Tempering multiplies every log-likelihood by γ ∈ (0, 1].
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from phyloc.errors import ValidationError
@@ -184,6 +186,126 @@ class GaussianRangeLikelihood:
             self.csr.tx,
             self.ranges,
             gamma / var,
+            np.ascontiguousarray(centers, dtype=np.float64),
+            out,
+        )
+        return out
+
+
+class MarginalDirectLikelihood:
+    """DiPNet's direct likelihood marginalized over the neighbour's projected uncertainty.
+
+    The one-path likelihood of eq. (22), ``exp(ℓ(d))`` with ``ℓ = |f(d)|²/(σ²‖S‖²)``, is
+    represented by the Laplace approximations of its peaks in the search window (position
+    ``d_i``, height ``h_i = ℓ(d_i)``, curvature ``c_i = −ℓ''(d_i)``, all from the exact spectral
+    sum) plus the floor ``exp(0)``, and convolved with ``N(0, σ²_{v→uv})`` along the distance
+    axis — the neighbour's position uncertainty projected on the link (eq. (15)):
+
+    .. math:: \\log\\tilde p(r_{uv}|p_u, \\hat p_v) = \\log\\Big(1 + \\sum_i
+              \\frac{e^{h_i}}{\\sqrt{1 + c_i σ^2_{v→uv}}}
+              \\exp\\Big(-\\frac{(\\|p_u - \\hat p_v\\| - d_i)^2}
+              {2(1/c_i + σ^2_{v→uv})}\\Big)\\Big).
+
+    At each peak its curvature is ``1/(1/c_i + σ²_{v→uv})`` — the equivalent ranging
+    information of eqs. (14)/(18), as the ENV of eq. (26) also gives — but, unlike eq. (25) with
+    the ENV, its height does not vanish when the neighbour is uncertain: eq. (25) divides the
+    whole bump by σ̃², which for a neighbour known to 10 m leaves a bump of ~0.1 nat (height
+    ``≈ 6c0²/(ω²N²σ²_{v→uv})``) and no pull beyond the correlation main lobe; the marginal keeps
+    the full evidence spread over the uncertain range. This is phyloc's default DiPNet
+    likelihood (a departure from eq. (25), documented as such); ``DirectLikelihood`` is eq. (25).
+
+    Peaks are the grid maxima of ``|f|²`` in ``window_m`` with ``h_i >= max h − drop_nats``, at
+    most ``max_peaks`` per link (the highest).
+    """
+
+    kind = "marginal"
+
+    def __init__(
+        self,
+        table: CorrelationTable,
+        links,
+        agent_of_node,
+        n_agents,
+        *,
+        window_m=(0.0, 300.0),
+        ways=1,
+        drop_nats=25.0,
+        max_peaks=32,
+        use_env=True,
+        interpolation=None,
+    ):
+        if table.n_links != len(links):
+            raise ValidationError("table", f"{table.n_links} links", f"one per link ({len(links)})")
+        self.csr = _Links(links, agent_of_node, n_agents)
+        idx = self.csr.link_index
+        self.ways = int(ways)
+        self.use_env = bool(use_env)
+        sysm = table.system
+        h = table.spacing_m
+        lo, hi = float(window_m[0]), float(window_m[1])
+        k = np.arange(math.ceil(lo / h), math.floor(hi / h) + 1)
+        inv_scale = 1.0 / (table.noise_var * table.symbol_energy)
+        counts, rows, d0, sc = [], [], [], []
+        for link in idx:
+            g = np.abs(table.values[link, k % table.n_fft]) ** 2
+            interior = np.zeros(g.size, bool)
+            interior[1:-1] = (g[1:-1] > g[:-2]) & (g[1:-1] >= g[2:])
+            cand = np.flatnonzero(interior)
+            if cand.size == 0:
+                cand = np.array([int(np.argmax(g))])
+            ell = g[cand] * inv_scale[link]
+            keep = cand[ell >= ell.max() - drop_nats]
+            if keep.size > max_peaks:
+                keep = keep[np.argsort(g[keep])[::-1][:max_peaks]]
+            counts.append(keep.size)
+            rows.append(np.full(keep.size, link))
+            d0.append(k[keep] * h)
+            sc.append(np.full(keep.size, inv_scale[link]))
+        self.pk_off = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        rows = np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, np.int64)
+        d0 = np.concatenate(d0) if d0 else np.zeros(0)
+        sc = np.concatenate(sc) if sc else np.zeros(0)
+        self.pk_d = np.empty(d0.size)
+        self.pk_h = np.empty(d0.size)
+        self.pk_c = np.empty(d0.size)
+        K.peak_laplace_kernel(
+            table.spectrum,
+            rows,
+            float(-(sysm.n_subcarriers - 1) // 2),
+            sysm.omega / C0,
+            d0,
+            h,
+            8,
+            sc,
+            self.pk_d,
+            self.pk_h,
+            self.pk_c,
+        )
+        # ranging information ν of the strongest peak per link (for covariance floors)
+        self.nu = np.zeros(len(idx))
+        for j in range(len(idx)):
+            a, b = self.pk_off[j], self.pk_off[j + 1]
+            if b > a:
+                self.nu[j] = self.pk_c[a + np.argmax(self.pk_h[a:b])] * self.ways**2
+
+    def loglik(self, particles, centers, covs, gamma=1.0) -> np.ndarray:
+        """``γ Σ_v log p̃(r_uv | x, p̂_v)`` for every particle, ``[n_agents, Q]``."""
+        if self.use_env:
+            s2 = projected_variances(centers, covs, self.csr.rx, self.csr.tx) * self.ways**2
+        else:
+            s2 = np.zeros(self.csr.rx.size)
+        out = np.empty(particles.shape[:2])
+        K.mixture_loglik_kernel(
+            particles,
+            self.csr.offsets,
+            self.csr.tx,
+            self.pk_off,
+            self.pk_d,
+            self.pk_h,
+            self.pk_c,
+            s2,
+            float(self.ways),
+            float(gamma),
             np.ascontiguousarray(centers, dtype=np.float64),
             out,
         )
