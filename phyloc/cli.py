@@ -25,6 +25,8 @@ BENCHMARKS = {
     "phy": "phyloc.benchmarks.bench_phy",
     "channels": "phyloc.benchmarks.bench_channels",
     "ranging": "phyloc.benchmarks.bench_ranging",
+    "dipnet": "phyloc.benchmarks.bench_dipnet",
+    "datasets": "phyloc.benchmarks.bench_datasets",
 }
 
 

@@ -243,3 +243,91 @@ def test_same_seed_same_result_with_any_thread_count():
         numba.set_num_threads(before)
     np.testing.assert_array_equal(out[0].means, out[1].means)
     np.testing.assert_array_equal(out[0].particles, out[1].particles)
+
+
+# -- the marginal equivalent likelihood ---------------------------------------------------------
+def test_mixture_kernel_matches_numpy_twin(rng):
+    from phyloc.localization._kernels import mixture_loglik_kernel, mixture_loglik_numpy
+
+    n_agents, Q, dim = 3, 40, 2
+    X = rng.uniform(0, 100, (n_agents, Q, dim))
+    centers = rng.uniform(0, 100, (6, dim))
+    offsets = np.array([0, 2, 2, 4])
+    nb = np.array([3, 4, 5, 0])
+    pk_off = np.array([0, 3, 3, 4, 9])  # link 1 has no peak: only the floor
+    n_pk = 9
+    pk_d = rng.uniform(0, 150, n_pk)
+    pk_h = rng.uniform(0, 500, n_pk)
+    pk_c = rng.uniform(0.1, 1e3, n_pk)
+    s2 = np.array([0.0, 4.0, 100.0, 0.5])
+    out = np.empty((n_agents, Q))
+    mixture_loglik_kernel(X, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, 2.0, 0.7, centers, out)
+    ref = mixture_loglik_numpy(X, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, 2.0, 0.7, centers)
+    np.testing.assert_allclose(out, ref, rtol=1e-10)
+    assert np.all(out >= 0)  # the floor: exp(ℓ) >= 1
+
+
+def test_marginal_likelihood_is_the_convolution_of_the_exact_one(rng):
+    """log p̃(d) ≈ log ∫ exp(ℓ(d − y)) N(y; 0, s²) dy, ℓ = |f|²/(σ²‖S‖²) (brute force)."""
+    from phyloc.localization.likelihoods import MarginalDirectLikelihood
+
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=25.0).select([0])
+    lik = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1)
+    d_true = np.linalg.norm(pos[0] - pos[1])
+    inv_scale = 1.0 / (tab.noise_var[0] * tab.symbol_energy[0])
+    direction = (pos[0] - pos[1]) / d_true
+    for s2 in (0.0, 0.25, 4.0, 100.0):
+        covs = np.zeros((5, 2, 2))
+        covs[1] = s2 * np.eye(2)  # projected variance s² on any link
+        s = math.sqrt(s2)
+        y = np.linspace(-8 * s - 6, 8 * s + 6, 4001)
+        for off in (-5.0, -0.7, 0.0, 0.3, 3.0):
+            X = np.array([[pos[1] + (d_true + off) * direction]])
+            got = lik.loglik(X, pos, covs)[0, 0]
+            ell = np.abs(tab.exact((d_true + off - y)[None, :], links=[0])[0]) ** 2 * inv_scale
+            if s2 == 0.0:
+                brute = np.log1p(np.exp(ell[y.size // 2]))  # no smoothing: the exact ℓ(d)
+            else:
+                wts = np.exp(-0.5 * y**2 / s2) / math.sqrt(2 * math.pi * s2)
+                m = ell.max()
+                brute = m + np.log(np.trapezoid(np.exp(ell - m) * wts, y))
+            if s2 == 0.0 and abs(off) > 1.0:
+                continue  # far from the peak the unsmoothed Laplace tail is not the sinc²
+            assert got == pytest.approx(brute, rel=0.03, abs=1.0)
+
+
+def test_gauge_priors_show_the_published_collapse():
+    from phyloc.localization import gauge_log_prior, gauge_priors
+
+    rng = np.random.default_rng(21)
+    pos = rng.uniform(0, 60, (6, 2))
+    pos[0] = 0.0  # the gauge: agent 0 at the origin, agent 1 on +x, agent 2 above the x-axis
+    pos[1] = [40.0, 0.0]
+    pos[2, 1] = abs(pos[2, 1]) + 5
+    is_anchor = np.zeros(6, bool)
+    links = np.array([(u, v) for u in range(6) for v in range(6) if u != v])
+    tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=35.0)
+    X = gauge_priors(6, 2, 500, 100.0, rng)
+    prior = Prior(X, lambda x: gauge_log_prior(x, 100.0), "gauge")
+    from phyloc.localization.likelihoods import MarginalDirectLikelihood
+
+    pub = run_dpf(
+        DirectLikelihood(tab, links, agent_map(is_anchor), 6),
+        prior,
+        pos,
+        is_anchor,
+        rng,
+        DPFOptions.published(n_iterations=4),
+    )
+    safe = run_dpf(
+        MarginalDirectLikelihood(tab, links, agent_map(is_anchor), 6),
+        prior,
+        pos,
+        is_anchor,
+        rng,
+        DPFOptions(n_iterations=4),
+    )
+    # published: the Dirac prior of agent 0 makes its links exact; its neighbours collapse
+    assert np.median(pub.ess_history[0, 1:]) < 3.0
+    assert safe.ess_history[:, 1:].min() >= 0.45 * 500

@@ -47,8 +47,9 @@ class Realization:
         return len(self.links)
 
 
-def simulate_realization(system: OFDMSystem, network: NetworkSpec, channel: ChannelSpec,
-                         rng: np.random.Generator) -> Realization:
+def simulate_realization(
+    system: OFDMSystem, network: NetworkSpec, channel: ChannelSpec, rng: np.random.Generator
+) -> Realization:
     """Draw a network, its channels and the received signals of all links and snapshots."""
     net = make_network(network, rng)
     links, draws = [], []

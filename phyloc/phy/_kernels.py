@@ -102,15 +102,42 @@ def synthesize_numpy(symbols, tx_index, delays, gains, offsets, omega, n_first, 
 # Lagrange interpolation on a periodic uniform grid
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
+def _wrap(j, L):
+    if j < 0:
+        return j + L
+    if j >= L:
+        return j - L
+    return j
+
+
+@njit(cache=True, inline="always")
 def _lagrange_eval(values, row, L, x, order):
-    """Lagrange interpolation of ``values[row]`` (period L) at grid coordinate x."""
+    """Lagrange interpolation of ``values[row]`` (period L) at grid coordinate x.
+
+    Closed-form weights for the nodes −order/2+1 … order/2 around ``floor(x)`` (no divisions
+    in the hot path).
+    """
     fl = np.floor(x)
     t = x - fl
-    base = np.int64(fl)
+    j0 = np.int64(fl)
+    if j0 < 0 or j0 >= L:  # rare: distances beyond one period (avoids a modulo per call)
+        j0 %= L
     if order == 2:
-        j0 = base % L
-        j1 = (j0 + 1) % L
-        return values[row, j0] * (1.0 - t) + values[row, j1] * t
+        return values[row, j0] * (1.0 - t) + values[row, _wrap(j0 + 1, L)] * t
+    if order == 4:
+        tp1 = t + 1.0
+        tm1 = t - 1.0
+        tm2 = t - 2.0
+        w0 = -t * tm1 * tm2 * (1.0 / 6.0)
+        w1 = tp1 * tm1 * tm2 * 0.5
+        w2 = -tp1 * t * tm2 * 0.5
+        w3 = tp1 * t * tm1 * (1.0 / 6.0)
+        return (
+            values[row, _wrap(j0 - 1, L)] * w0
+            + values[row, j0] * w1
+            + values[row, _wrap(j0 + 1, L)] * w2
+            + values[row, _wrap(j0 + 2, L)] * w3
+        )
     half = order // 2
     acc = 0j
     for a in range(order):
@@ -120,7 +147,7 @@ def _lagrange_eval(values, row, L, x, order):
             if b != a:
                 xb = b - half + 1
                 w *= (t - xb) / (xa - xb)
-        acc += values[row, (base + xa) % L] * w
+        acc += values[row, (j0 + xa) % L] * w
     return acc
 
 

@@ -1,0 +1,180 @@
+"""DiPNet / EL-DPF benchmarks: likelihood kernels, agent-iterations, scaling in Q and |V_u|.
+
+Work unit: one particle–link likelihood evaluation (distance, table interpolation or peak
+mixture, accumulate). Figures (names are the interface):
+
+``dipnet.env.evals_per_s_per_core``       eq. (25) kernel (cubic table interpolation), 1 thread
+``dipnet.marginal.evals_per_s_per_core``  phyloc's marginal EL kernel, 1 thread
+``dipnet.gauss.evals_per_s_per_core``     two-step Gaussian ERV kernel, 1 thread
+``dipnet.env.numpy_evals_per_s``          the NumPy twin of the eq. (25) kernel (reference)
+``dipnet.env.speedup_vs_numpy``
+``dipnet.agent_iteration_s``              safeguarded DiPNet, Q = 1000, |V_u| = 29 (30 agents)
+``dipnet_published.agent_iteration_s``    Algorithm 1 as published, same network
+``dipnet.scaling_exponent_q``             d log(time) / d log(Q) of one likelihood sweep
+``dipnet.scaling_exponent_links``         d log(time) / d log(|V_u|)   (Table I: both 1)
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from phyloc.channels import ChannelSpec
+from phyloc.datasets.simulate import simulate_realization
+from phyloc.localization import (
+    DirectLikelihood,
+    DPFOptions,
+    GaussianRangeLikelihood,
+    Prior,
+    gaussian_log_prior,
+    gaussian_priors,
+    informed_centers,
+    run_dpf,
+)
+from phyloc.localization import _kernels as K
+from phyloc.localization.likelihoods import MarginalDirectLikelihood
+from phyloc.network import NetworkSpec
+from phyloc.phy import OFDMSystem
+from phyloc.phy.correlation import correlation_tables
+
+try:
+    from phyloc.benchmarks._timing import best_seconds
+except ImportError:  # run from the source tree by asv
+    from benchmarks._timing import best_seconds
+
+
+def make_network(n_agents=30, seed=0, scenario="awgn"):
+    """A fully meshed anchor-free network, its tables and the three likelihoods."""
+    system = OFDMSystem()
+    rng = np.random.default_rng(seed)
+    real = simulate_realization(system, NetworkSpec(n_agents=n_agents), ChannelSpec(scenario), rng)
+    links = real.links[0]
+    table = correlation_tables(real.received[0], real.symbols, system, tx_index=links[:, 1])
+    agent_of = np.arange(n_agents)
+    d = real.network.distances(0)
+    liks = {
+        "env": DirectLikelihood(table, links, agent_of, n_agents),
+        "marginal": MarginalDirectLikelihood(table, links, agent_of, n_agents),
+        "gauss": GaussianRangeLikelihood(
+            d, np.full(d.size, 0.01), np.ones(d.size, bool), links, agent_of, n_agents
+        ),
+    }
+    return real, liks, rng
+
+
+def _state(real, Q, rng):
+    pos = real.network.positions[0]
+    centers = informed_centers(pos, 5.0, rng=rng)
+    X = gaussian_priors(centers, 5.0, Q, rng)
+    covs = np.repeat(np.eye(pos.shape[1])[None] * 25.0, pos.shape[0], axis=0)
+    return pos, centers, X, covs
+
+
+class Likelihood:
+    """asv: one likelihood sweep over all agents (30 agents × 29 links × Q = 1000)."""
+
+    params = [["env", "marginal", "gauss"]]
+    param_names = ["kind"]
+
+    def setup(self, kind):
+        self.real, self.liks, rng = make_network()
+        self.pos, self.centers, self.X, self.covs = _state(self.real, 1000, rng)
+        self.liks[kind].loglik(self.X, self.pos, self.covs)
+
+    def time_loglik(self, kind):
+        self.liks[kind].loglik(self.X, self.pos, self.covs)
+
+
+def _sweep_rate(lik, X, pos, covs, repeat):
+    t = best_seconds(lambda: lik.loglik(X, pos, covs), repeat=repeat)
+    return lik.csr.rx.size * X.shape[1] / t, t
+
+
+def _slope(x, t):
+    return float(np.polyfit(np.log(x), np.log(t), 1)[0])
+
+
+def report(quick: bool = False) -> dict[str, float]:
+    """Measure the figures of the module docstring (``quick``: fewer repeats and sizes)."""
+    repeat = 2 if quick else 5
+    fig: dict[str, float] = {}
+    real, liks, rng = make_network()
+    pos, centers, X, covs = _state(real, 1000, rng)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        for kind, lik in liks.items():
+            fig[f"dipnet.{kind}.evals_per_s_per_core"] = _sweep_rate(lik, X, pos, covs, repeat)[0]
+    finally:
+        numba.set_num_threads(before)
+    env = liks["env"]
+    scale = 1.0 / (env.env(pos, covs) * env.energy)
+    Xs = X[:4]
+    off = env.csr.offsets[:5]
+    t_np = best_seconds(
+        lambda: K.direct_loglik_numpy(
+            Xs,
+            off,
+            env.csr.tx,
+            env.rows,
+            scale,
+            pos,
+            env.table.values,
+            1.0 / env.table.spacing_m,
+            4,
+        ),
+        repeat=max(1, repeat - 2),
+    )
+    fig["dipnet.env.numpy_evals_per_s"] = off[-1] * Xs.shape[1] / t_np
+    fig["dipnet.env.speedup_vs_numpy"] = (
+        fig["dipnet.env.evals_per_s_per_core"] / fig["dipnet.env.numpy_evals_per_s"]
+    )
+    prior = Prior(X, lambda x: gaussian_log_prior(x, centers[:30], 5.0), "informed start")
+    is_anchor = real.network.is_anchor
+    for name, opts, lik in (
+        ("dipnet", DPFOptions(n_iterations=4 if quick else 8), liks["marginal"]),
+        ("dipnet_published", DPFOptions.published(n_iterations=4 if quick else 8), liks["env"]),
+    ):
+        res = run_dpf(lik, prior, pos, is_anchor, np.random.default_rng(1), opts)
+        fig[f"{name}.agent_iteration_s"] = res.seconds / res.agent_iterations
+    qs = [250, 500, 1000, 2000] if quick else [250, 500, 1000, 2000, 4000]
+    tq = [
+        _sweep_rate(liks["env"], gaussian_priors(centers, 5.0, q, rng), pos, covs, repeat)[1]
+        for q in qs
+    ]
+    fig["dipnet.scaling_exponent_q"] = _slope(qs, tq)
+    sizes = [6, 11, 21, 30]
+    tl = []
+    for n in sizes:
+        r2, l2, g2 = make_network(n_agents=n)
+        p2, _c2, X2, v2 = _state(r2, 1000, g2)
+        tl.append(_sweep_rate(l2["env"], X2, p2, v2, repeat)[1] / n)  # per agent
+    fig["dipnet.scaling_exponent_links"] = _slope([n - 1 for n in sizes], tl)
+    return fig
+
+
+def summarize(fig: dict) -> str:
+    """The printed form of :func:`report`."""
+    from phyloc.reporting import format_table
+
+    rows = [
+        (
+            "eq. (25) kernel (ENV, cubic)",
+            fig["dipnet.env.evals_per_s_per_core"],
+            f"{fig['dipnet.env.speedup_vs_numpy']:.0f}x NumPy twin",
+        ),
+        ("marginal EL kernel", fig["dipnet.marginal.evals_per_s_per_core"], ""),
+        ("Gaussian ERV kernel", fig["dipnet.gauss.evals_per_s_per_core"], ""),
+        ("eq. (25) NumPy twin", fig["dipnet.env.numpy_evals_per_s"], "reference"),
+    ]
+    t1 = format_table(rows, ["particle-link evaluations", "per s per core", "ratio"])
+    rows2 = [
+        ("dipnet (safeguarded)", 1e3 * fig["dipnet.agent_iteration_s"]),
+        ("dipnet_published", 1e3 * fig["dipnet_published.agent_iteration_s"]),
+    ]
+    t2 = format_table(rows2, ["Q = 1000, |V_u| = 29", "ms per agent-iteration"])
+    t3 = (
+        f"scaling of one likelihood sweep: time ∝ Q^{fig['dipnet.scaling_exponent_q']:.2f}, "
+        f"∝ |V_u|^{fig['dipnet.scaling_exponent_links']:.2f} per agent (Table I: 1 and 1)"
+    )
+    return f"{t1}\n\n{t2}\n\n{t3}"

@@ -1,0 +1,576 @@
+"""Reading waveform datasets: lazy arrays, snapshots for localizers, ``info`` and ``verify``.
+
+>>> with open_dataset("c2.h5") as ds:                       # doctest: +SKIP
+...     snap = ds.snapshot(0, 0)                             # realization 0, snapshot 0
+...     R, S, tx = snap.received, snap.symbols, snap.tx_index  # what a localizer needs
+...     table = correlation_tables(R, S, ds.system, tx_index=tx)
+
+Every array of the schema (``datasets/README.md``) is available lazily as an ``h5py.Dataset``
+(``ds["received"]``, ``ds.arrays``); :meth:`Dataset.snapshot` and :meth:`Dataset.realization`
+read what one snapshot or one realization needs, and the iterators walk them in order.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from phyloc import _validate as v
+from phyloc.channels import ChannelDraw
+from phyloc.datasets import schema as sc
+from phyloc.datasets.simulate import Realization
+from phyloc.errors import ValidationError
+from phyloc.network import Network
+from phyloc.phy.paths import PathSet
+from phyloc.phy.system import OFDMSystem
+from phyloc.phy.waveform import from_time_domain
+
+
+@dataclass(frozen=True, eq=False)
+class Snapshot:
+    """What a localizer needs from one (realization, snapshot) of a dataset.
+
+    Attributes
+    ----------
+    realization, snapshot : int
+    system : OFDMSystem
+    positions : [n_nodes, dim] float64
+        True positions [m].
+    is_anchor : [n_nodes] bool
+    links : [n_links, 2] int64
+        Directed links (u, v): u receives from v.
+    samples : [n_links, os·N] complex64
+        Received time-domain samples ``r(iT)`` as stored [√W].
+    symbols : [n_nodes, N] complex128
+        Pilot symbols of every node as transmitter.
+    los : [n_links] bool
+    nlos_bias_s, distance_m, path_loss_db, shadowing_db, received_power_w, snr_db : [n_links]
+        Channel truth per link (s, m, dB, dB, W, dB; ``snr_db`` is per sample).
+    paths : PathSet
+        Multipath components of every link (delays [s], gains [√W]).
+    ways : int
+        1 (one-way) or 2 (two-way ranging: delays are round trips).
+    velocities : [n_nodes, dim] float64 or None
+        [m/s] (CV/CA motion only).
+    """
+
+    realization: int
+    snapshot: int
+    system: OFDMSystem
+    positions: np.ndarray
+    is_anchor: np.ndarray
+    links: np.ndarray
+    samples: np.ndarray
+    symbols: np.ndarray
+    los: np.ndarray
+    nlos_bias_s: np.ndarray
+    distance_m: np.ndarray
+    path_loss_db: np.ndarray
+    shadowing_db: np.ndarray
+    received_power_w: np.ndarray
+    snr_db: np.ndarray
+    paths: PathSet
+    ways: int
+    velocities: np.ndarray | None = None
+
+    @property
+    def n_links(self) -> int:
+        """Number of directed links."""
+        return self.links.shape[0]
+
+    @property
+    def tx_index(self) -> np.ndarray:
+        """Transmitter of each link (row of :attr:`symbols`), ``links[:, 1]``."""
+        return self.links[:, 1]
+
+    @property
+    def rx_index(self) -> np.ndarray:
+        """Receiver of each link, ``links[:, 0]``."""
+        return self.links[:, 0]
+
+    @cached_property
+    def received(self) -> np.ndarray:
+        """Frequency-domain received symbols ``R_n``, ``[n_links, N]`` complex128
+        (:func:`~phyloc.phy.waveform.from_time_domain` of :attr:`samples`)."""
+        return from_time_domain(self.samples, self.system)
+
+
+class Dataset:
+    """An open phyloc waveform dataset (use :func:`open_dataset`; a context manager).
+
+    Attributes
+    ----------
+    path : Path
+    file : h5py.File
+        The master file (read-only).
+    system : OFDMSystem
+        Rebuilt from the ``/system`` attributes.
+    recipe : str
+        The recipe's TOML text.
+    seed : int
+    name : str
+    schema_version : str
+    n_realizations, n_snapshots, n_nodes, dim, max_links : int
+    ways : int
+    scenario, ranging : str
+    comm_range_m : float or None
+    dt_s : float or None
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise sc.DatasetError(f"dataset {self.path} does not exist")
+        try:
+            self.file = h5py.File(self.path, "r")
+        except OSError as exc:
+            raise sc.DatasetError(
+                f"cannot read {self.path} as HDF5 ({exc}); if its generation was interrupted, "
+                f"`phyloc generate RECIPE -o {self.path} --resume` rebuilds it"
+            ) from None
+        try:
+            self._load_meta()
+        except BaseException:
+            self.file.close()
+            raise
+
+    def _load_meta(self):
+        a = self.file.attrs
+        self.schema_version = sc.check_version(a, self.path, sc.MASTER_FORMAT)
+        txt = sc._text
+        self.recipe = txt(a["recipe"])
+        self.name = txt(a["name"])
+        self.seed = int(a["seed"])
+        self.phyloc_version = txt(a["phyloc_version"])
+        self.created_utc = txt(a["created_utc"])
+        self.n_realizations = int(a["n_realizations"])
+        self.n_snapshots = int(a["n_snapshots"])
+        self.n_nodes = int(a["n_nodes"])
+        self.dim = int(a["dim"])
+        self.max_links = int(a["max_links"])
+        self.ways = int(a["ways"])
+        self.scenario = txt(a["scenario"])
+        self.ranging = txt(a["ranging"])
+        cr, dt = float(a["comm_range_m"]), float(a["dt_s"])
+        self.comm_range_m = None if math.isnan(cr) else cr
+        self.dt_s = None if math.isnan(dt) else dt
+        self.shard_size = int(a["shard_size"])
+        self.n_shards = int(a["n_shards"])
+        g = self.file["system"].attrs
+        fields = (
+            "n_subcarriers",
+            "subcarrier_spacing_hz",
+            "carrier_frequency_hz",
+            "tx_power_dbm",
+            "temperature_k",
+            "noise_figure_db",
+            "oversampling",
+        )
+        self.system = OFDMSystem(**{k: g[k].item() for k in fields if k in g})
+        sh = self.file["shards"]
+        self.shards = {
+            "realization_start": sh["realization_start"][:],
+            "realization_stop": sh["realization_stop"][:],
+            "complete": sh["complete"][:].astype(bool),
+            "file": sh["file"].asstr()[:],
+            "file_sha256": np.array([x.decode() for x in sh["file_sha256"][:]]),
+            "bytes": sh["bytes"][:],
+            "n_links": sh["n_links"][:],
+            "n_paths": sh["n_paths"][:],
+        }
+        self.array_names = tuple(sc._text(x) for x in sh["array_sha256"].attrs["arrays"])
+
+    # -- context manager and basics ----------------------------------------------------------
+    def close(self) -> None:
+        """Close the master file."""
+        self.file.close()
+
+    def __enter__(self) -> Dataset:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return (
+            f"<phyloc Dataset {self.path.name!r}: {self.n_realizations} realizations x "
+            f"{self.n_snapshots} snapshots, {self.n_nodes} nodes, N = "
+            f"{self.system.n_subcarriers}, {self.shards['complete'].sum()}/{self.n_shards} "
+            "shards complete>"
+        )
+
+    def __len__(self) -> int:
+        return self.n_realizations
+
+    def __iter__(self):
+        """Iterate over the realizations (:meth:`realization` of each, in order)."""
+        for r in range(self.n_realizations):
+            yield self.realization(r)
+
+    def __getitem__(self, name: str) -> h5py.Dataset:
+        """The lazy ``h5py.Dataset`` of an array, e.g. ``ds["received"]``."""
+        if name not in self.array_names:
+            raise KeyError(f"no array {name!r}; arrays: {', '.join(self.array_names)}")
+        return self.file[name]
+
+    @property
+    def arrays(self) -> dict:
+        """Every array of the dataset as a lazy ``h5py.Dataset``, by name."""
+        return {name: self.file[name] for name in self.array_names}
+
+    @property
+    def complete(self) -> bool:
+        """Whether every shard is complete."""
+        return bool(self.shards["complete"].all())
+
+    @property
+    def is_anchor(self) -> h5py.Dataset:
+        """``nodes/is_anchor``: [realization, node] uint8."""
+        return self.file["nodes/is_anchor"]
+
+    @property
+    def positions(self) -> h5py.Dataset:
+        """``nodes/positions``: [realization, snapshot, node, dim] float64 [m]."""
+        return self.file["nodes/positions"]
+
+    @property
+    def received(self) -> h5py.Dataset:
+        """``received``: [realization, snapshot, link, sample] complex64 [√W]."""
+        return self.file["received"]
+
+    @property
+    def symbols(self) -> h5py.Dataset:
+        """``symbols``: [realization, node, N] complex64."""
+        return self.file["symbols"]
+
+    def load_recipe(self):
+        """The stored recipe as a validated :class:`~phyloc.config.Recipe`."""
+        from phyloc.config import load_recipe
+
+        return load_recipe(self.recipe)
+
+    # -- availability ---------------------------------------------------------------------------
+    def _realization(self, r) -> int:
+        r = v.integer("realization", r)
+        if not 0 <= r < self.n_realizations:
+            raise ValidationError("realization", r, f"must be in [0, {self.n_realizations})")
+        j = r // self.shard_size
+        if not self.shards["complete"][j]:
+            raise sc.DatasetError(
+                f"realization {r} of {self.path} is in shard {j}, which is not complete; "
+                f"finish the dataset with `phyloc generate RECIPE -o {self.path} --resume`"
+            )
+        if not (self.path.parent / self.shards["file"][j]).is_file():
+            raise sc.DatasetError(
+                f"shard file {self.shards['file'][j]} of {self.path} is missing; regenerate it "
+                f"with `phyloc generate RECIPE -o {self.path} --resume`"
+            )
+        return r
+
+    def _snap(self, t) -> int:
+        t = v.integer("snapshot", t)
+        if not 0 <= t < self.n_snapshots:
+            raise ValidationError("snapshot", t, f"must be in [0, {self.n_snapshots})")
+        return t
+
+    def available(self, r: int) -> bool:
+        """Whether realization ``r`` is stored (its shard is complete and present)."""
+        try:
+            self._realization(r)
+        except sc.DatasetError:
+            return False
+        return True
+
+    # -- reading --------------------------------------------------------------------------------
+    def _paths(self, r: int, t: int, n: int) -> PathSet:
+        if n == 0:
+            return PathSet(np.zeros(0), np.zeros(0, np.complex128), np.zeros(1, np.int64))
+        f = self.file
+        base = int(f["channel/paths/base"][r])
+        start = f["channel/paths/start"][r, t, :n].astype(np.int64)
+        count = f["channel/paths/count"][r, t, :n].astype(np.int64)
+        lo, hi = base + start[0], base + start[-1] + count[-1]
+        offsets = np.r_[start - start[0], hi - lo]
+        return PathSet(f["channel/paths/delays_s"][lo:hi], f["channel/paths/gains"][lo:hi], offsets)
+
+    def snapshot(self, realization: int, snapshot: int = 0) -> Snapshot:
+        """Read one (realization, snapshot): positions, links, samples, pilots, channel truth.
+
+        Parameters
+        ----------
+        realization : int
+            0 <= realization < :attr:`n_realizations`.
+        snapshot : int
+            0 <= snapshot < :attr:`n_snapshots`.
+
+        Returns
+        -------
+        Snapshot
+            ``snap.received`` gives the frequency-domain ``R_n`` and ``snap.tx_index`` the
+            transmitter of every link, as :func:`~phyloc.phy.correlation.correlation_tables`
+            takes them.
+
+        Raises
+        ------
+        DatasetError
+            The realization's shard is not complete or its file is missing.
+        """
+        r, t = self._realization(realization), self._snap(snapshot)
+        f = self.file
+        n = int(f["links/count"][r, t])
+        link = slice(0, n)
+
+        def per_link(name):
+            return f[name][r, t, link]
+
+        vel = f["nodes/velocities"][r, t] if "nodes/velocities" in self.array_names else None
+        return Snapshot(
+            realization=r,
+            snapshot=t,
+            system=self.system,
+            positions=f["nodes/positions"][r, t],
+            is_anchor=f["nodes/is_anchor"][r].astype(bool),
+            links=f["links/pairs"][r, t, link].astype(np.int64),
+            samples=f["received"][r, t, link],
+            symbols=f["symbols"][r].astype(np.complex128),
+            los=per_link("channel/los").astype(bool),
+            nlos_bias_s=per_link("channel/nlos_bias_s"),
+            distance_m=per_link("channel/distance_m"),
+            path_loss_db=per_link("channel/path_loss_db"),
+            shadowing_db=per_link("channel/shadowing_db"),
+            received_power_w=per_link("channel/received_power_w"),
+            snr_db=per_link("channel/snr_db"),
+            paths=self._paths(r, t, n),
+            ways=self.ways,
+            velocities=vel,
+        )
+
+    def snapshots(self, realization: int | None = None):
+        """Iterate over the snapshots of one realization, or of all realizations in order."""
+        reals = range(self.n_realizations) if realization is None else [realization]
+        for r in reals:
+            for t in range(self.n_snapshots):
+                yield self.snapshot(r, t)
+
+    def realization(self, realization: int) -> Realization:
+        """Rebuild realization ``r`` as a :class:`~phyloc.datasets.simulate.Realization`
+        (network, pilots, links, frequency-domain received symbols, channel draws), the object
+        ``phyloc evaluate`` runs on when it simulates in memory.
+
+        ``received`` are :func:`~phyloc.phy.waveform.from_time_domain` of the stored complex64
+        samples; two-way channel draws carry the composite paths only (``components`` None).
+        """
+        r = self._realization(realization)
+        f = self.file
+        names = self.array_names
+        net = Network(
+            positions=f["nodes/positions"][r],
+            is_anchor=f["nodes/is_anchor"][r].astype(bool),
+            comm_range_m=self.comm_range_m,
+            velocities=f["nodes/velocities"][r] if "nodes/velocities" in names else None,
+            accelerations=(f["nodes/accelerations"][r] if "nodes/accelerations" in names else None),
+            dt_s=self.dt_s,
+        )
+        counts = f["links/count"][r]
+        pairs = f["links/pairs"][r]
+        per = {
+            name: f[f"channel/{name}"][r]
+            for name in (
+                "los",
+                "distance_m",
+                "nlos_bias_s",
+                "path_loss_db",
+                "shadowing_db",
+                "shadowing_std_db",
+                "received_power_w",
+                "delay_spread_s",
+                "k_factor_db",
+            )
+        }
+        links, received, channels = [], [], []
+        for t in range(self.n_snapshots):
+            n = int(counts[t])
+            links.append(pairs[t, :n].astype(np.int64))
+            received.append(from_time_domain(f["received"][r, t, :n], self.system))
+            channels.append(
+                ChannelDraw(
+                    paths=self._paths(r, t, n),
+                    los=per["los"][t, :n].astype(bool),
+                    nlos_bias_s=per["nlos_bias_s"][t, :n],
+                    path_loss_db=per["path_loss_db"][t, :n],
+                    shadowing_db=per["shadowing_db"][t, :n],
+                    shadowing_std_db=per["shadowing_std_db"][t, :n],
+                    received_power_w=per["received_power_w"][t, :n],
+                    delay_spread_s=per["delay_spread_s"][t, :n],
+                    k_factor_db=per["k_factor_db"][t, :n],
+                    distances_m=per["distance_m"][t, :n],
+                    scenario=self.scenario,
+                    ranging=self.ranging,
+                )
+            )
+        symbols = f["symbols"][r].astype(np.complex128)
+        return Realization(net, symbols, links, received, channels, self.ways)
+
+    def checksums(self) -> dict:
+        """SHA-256 of every array as read through the master (C-order bytes), by name: two
+        datasets with equal checksums hold the same data."""
+        return {name: sc.sha256_h5(self.file[name]) for name in self.array_names}
+
+
+def open_dataset(path) -> Dataset:
+    """Open a phyloc waveform dataset (its master ``.h5`` file) for reading.
+
+    Arrays are read lazily; use as a context manager (``with open(path) as ds: ...``).
+
+    Raises
+    ------
+    DatasetError
+        The file does not exist, is not HDF5 or not a phyloc dataset.
+    SchemaVersionError
+        The file was written with a newer major schema version.
+    """
+    return Dataset(path)
+
+
+#: ``phyloc.datasets.open`` (the name the package exports).
+open = open_dataset
+
+
+def _disk_bytes(ds: Dataset) -> int:
+    total = ds.path.stat().st_size
+    for name in ds.shards["file"]:
+        p = ds.path.parent / name
+        if p.is_file():
+            total += p.stat().st_size
+    return total
+
+
+def info(path, *, verify: bool = False) -> dict:
+    """Summarize a dataset (``phyloc info``): sizes, shards complete, bytes; optionally verify.
+
+    Parameters
+    ----------
+    path : str or Path
+        The master file.
+    verify : bool
+        Also check every shard (:func:`verify_dataset`): its file checksum against the
+        master's record and the SHA-256 of every array; adds the keys of that function.
+
+    Returns
+    -------
+    dict
+        ``path``, ``name``, ``schema_version``, ``phyloc_version``, ``created_utc``, ``seed``,
+        ``scenario``, ``ranging``, ``n_realizations``, ``n_snapshots``, ``n_nodes``,
+        ``n_agents``, ``n_anchors``, ``dim``, ``max_links``, ``n_subcarriers``,
+        ``oversampling``, ``n_samples``, ``bandwidth_hz``, ``n_shards``, ``shard_size``,
+        ``shards_complete``, ``complete`` (bool), ``realizations_available``, ``links``
+        (stored received waveforms), ``paths``, ``bytes`` (master + shard files on disk).
+
+    Raises
+    ------
+    DatasetError, SchemaVersionError
+        As :func:`open_dataset`.
+    """
+    with open_dataset(path) as ds:
+        a = ds.file.attrs
+        sh = ds.shards
+        avail = int(
+            sum(
+                b - s
+                for s, b, c in zip(
+                    sh["realization_start"], sh["realization_stop"], sh["complete"], strict=True
+                )
+                if c
+            )
+        )
+        out = {
+            "path": str(ds.path),
+            "name": ds.name,
+            "schema_version": ds.schema_version,
+            "phyloc_version": ds.phyloc_version,
+            "created_utc": ds.created_utc,
+            "seed": ds.seed,
+            "scenario": ds.scenario,
+            "ranging": ds.ranging,
+            "n_realizations": ds.n_realizations,
+            "n_snapshots": ds.n_snapshots,
+            "n_nodes": ds.n_nodes,
+            "n_agents": int(a["n_agents"]),
+            "n_anchors": int(a["n_anchors"]),
+            "dim": ds.dim,
+            "max_links": ds.max_links,
+            "n_subcarriers": ds.system.n_subcarriers,
+            "oversampling": ds.system.oversampling,
+            "n_samples": ds.system.n_samples,
+            "bandwidth_hz": ds.system.bandwidth_hz,
+            "n_shards": ds.n_shards,
+            "shard_size": ds.shard_size,
+            "shards_complete": int(sh["complete"].sum()),
+            "complete": ds.complete,
+            "realizations_available": avail,
+            "links": int(sh["n_links"][sh["complete"]].sum()),
+            "paths": int(sh["n_paths"][sh["complete"]].sum()),
+            "bytes": _disk_bytes(ds),
+        }
+    if verify:
+        out.update(verify_dataset(path))
+    return out
+
+
+def verify_dataset(path) -> dict:
+    """Check every shard of a dataset completely (``phyloc info --verify``).
+
+    A shard is sound when its file exists, its SHA-256 equals the master's record, it belongs
+    to this dataset (recipe fingerprint, realization range) and every array's SHA-256 matches
+    its data. Truncated and bit-flipped shards are reported as corrupt;
+    ``phyloc generate ... --resume`` regenerates corrupt and missing shards.
+
+    Returns
+    -------
+    dict
+        ``verified`` (True), ``ok`` (every shard complete and sound), ``shards_ok``,
+        ``missing_shards`` (not complete in the master, or file absent), ``corrupt_shards``
+        (lists of shard indices) and ``problems`` (shard index → reason).
+    """
+    with open_dataset(path) as ds:
+        fp = sc._text(ds.file.attrs["recipe_fingerprint"])
+        arrays = [sc.spec_of(n) for n in ds.array_names]
+        sh = ds.shards
+        missing, corrupt, problems, ok = [], [], {}, 0
+        for j in range(ds.n_shards):
+            file = ds.path.parent / sh["file"][j]
+            if not sh["complete"][j]:
+                missing.append(j)
+                problems[j] = "not complete (generation unfinished or failed)"
+                continue
+            rec, kind, reason = sc.check_shard(
+                file,
+                index=j,
+                start=int(sh["realization_start"][j]),
+                stop=int(sh["realization_stop"][j]),
+                fingerprint=fp,
+                arrays=arrays,
+                file_sha256=sh["file_sha256"][j],
+            )
+            if rec is not None:
+                ok += 1
+                continue
+            (missing if kind == "missing" else corrupt).append(j)
+            problems[j] = reason
+    return {
+        "verified": True,
+        "ok": not missing and not corrupt,
+        "shards_ok": ok,
+        "missing_shards": missing,
+        "corrupt_shards": corrupt,
+        "problems": problems,
+    }
+
+
+#: ``phyloc.datasets.verify``.
+verify = verify_dataset
