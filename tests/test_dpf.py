@@ -331,3 +331,30 @@ def test_gauge_priors_show_the_published_collapse():
     # published: the Dirac prior of agent 0 makes its links exact; its neighbours collapse
     assert np.median(pub.ess_history[0, 1:]) < 3.0
     assert safe.ess_history[:, 1:].min() >= 0.45 * 500
+
+
+def test_tracking_follows_a_moving_agent():
+    from phyloc.localization import run_tracking
+
+    rng = np.random.default_rng(31)
+    T = 8
+    path = np.array([37.0, 61.0]) + np.cumsum(rng.normal(0, 1.0, (T, 2)), axis=0)
+    liks, positions = [], []
+    for t in range(T):
+        pos, is_anchor, links = single_agent_setup(tuple(path[t]))
+        tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=35.0)
+        liks.append(DirectLikelihood(tab, links, agent_map(is_anchor), 1))
+        positions.append(pos)
+    prior = gaussian_prior(np.array([path[0]]), 5.0, 1000, rng)
+    res = run_tracking(
+        liks,
+        prior,
+        np.array(positions),
+        is_anchor,
+        rng,
+        DPFOptions(n_iterations=2),
+        process_std_m=1.5,
+    )
+    err = np.array([np.linalg.norm(r.means[0] - path[t]) for t, r in enumerate(res)])
+    assert np.all(err < 0.3)  # every snapshot, although the agent moves ~1.4 m per step
+    assert all(np.all(np.isfinite(r.log_weights[np.isfinite(r.log_weights)])) for r in res)

@@ -6,7 +6,7 @@ ERV of eq. (18)) and :mod:`phyloc.localization.initialization` (truth-free coars
 informed and gauge priors).
 """
 
-from phyloc.localization.dpf import DPFOptions, DPFResult, Prior, run_dpf
+from phyloc.localization.dpf import DPFOptions, DPFResult, Prior, run_dpf, run_tracking
 from phyloc.localization.initialization import (
     INFORMED_START_STD_M,
     CoarseSolution,
@@ -42,6 +42,7 @@ __all__ = [
     "range_matrix",
     "raw_stress",
     "run_dpf",
+    "run_tracking",
     "shortest_path_completion",
     "smacof",
 ]

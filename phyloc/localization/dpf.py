@@ -126,11 +126,13 @@ class Prior:
     ``log_density(x [n_agents, Q, dim]) -> [n_agents, Q]`` may return −inf outside a support;
     None means the prior cannot be evaluated (resample-move is then skipped).
     ``label`` names the initialization in every output (e.g. ``"informed start"``).
+    ``log_weights [n_agents, Q]`` weight the particles (default: equal weights).
     """
 
     particles: np.ndarray
     log_density: object = None
     label: str = "truth-free"
+    log_weights: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -252,7 +254,8 @@ def run_dpf(
     logp = prior.log_density
     moving = options.resample_move and logp is not None
     lp = logp(X) if logp is not None else np.zeros((n_agents, Q))
-    lw0, n_bad = _normalize(np.where(np.isfinite(lp), 0.0, -np.inf))  # eq. (27): w^(p,0)
+    w_init = 0.0 if prior.log_weights is None else np.asarray(prior.log_weights, float)
+    lw0, n_bad = _normalize(np.where(np.isfinite(lp), w_init, -np.inf))  # eq. (27): w^(p,0)
 
     centers = positions.copy()
     covs = np.zeros((is_anchor.size, dim, dim))
@@ -412,3 +415,67 @@ def systematic_resample(log_weights_row, n, rng) -> np.ndarray:
 def projected_variance_of(centers, covs, rx, tx):
     """Re-export of :func:`~phyloc.localization.likelihoods.projected_variances`."""
     return projected_variances(centers, covs, rx, tx)
+
+
+def run_tracking(
+    likelihoods,
+    prior: Prior,
+    positions,
+    is_anchor,
+    rng: np.random.Generator,
+    options: DPFOptions = DPFOptions(),
+    *,
+    process_std_m: float = 1.0,
+    resample_ess: float = 0.5,
+    regularize: bool = True,
+) -> list[DPFResult]:
+    """Track agents over snapshots with the EL-DPF.
+
+    Snapshot 0 runs :func:`run_dpf` from ``prior``. Each later snapshot predicts the particles
+    with a random-walk motion model (``x_t = x_{t−1} + N(0, process_std_m²·I)``; DiPNet §II-C:
+    a state transition with the first-order Markov assumption), then runs the filter's
+    message-passing iterations with the predicted particles as prior (eq. (28) reweighting; no
+    Metropolis moves, since the predicted density cannot be evaluated). After each snapshot the
+    particles are resampled systematically when the ESS falls below ``resample_ess``·Q, and
+    jittered by a Gaussian kernel of Silverman's bandwidth when ``regularize`` (eq. (32) of the
+    PF-BP paper: regularized particle filter).
+
+    Parameters
+    ----------
+    likelihoods : sequence of likelihood objects, one per snapshot
+    positions : [T, n_nodes, dim]  known (anchor) positions per snapshot
+    """
+    positions = np.asarray(positions, dtype=np.float64)
+    if positions.ndim != 3 or positions.shape[0] != len(likelihoods):
+        raise ValidationError(
+            "positions",
+            f"shape {positions.shape}",
+            f"[T = {len(likelihoods)} snapshots, n_nodes, dim]",
+        )
+    q = v.positive("process_std_m", process_std_m, allow_zero=True)
+    out = [run_dpf(likelihoods[0], prior, positions[0], is_anchor, rng, options)]
+    fixed = dataclasses.replace(options, resample_move=False)
+    for t in range(1, len(likelihoods)):
+        prev = out[-1]
+        X, lw = prev.particles, prev.log_weights
+        Q = X.shape[1]
+        if np.any(_ess(lw) < resample_ess * Q):
+            X, lw = _resample_regularize(X, lw, rng, regularize)
+        X = X + q * rng.standard_normal(X.shape)
+        out.append(
+            run_dpf(
+                likelihoods[t], Prior(X, None, prior.label, lw), positions[t], is_anchor, rng, fixed
+            )
+        )
+    return out
+
+
+def _resample_regularize(X, lw, rng, regularize):
+    """Systematic resampling of every agent, then optional Gaussian jitter (Silverman)."""
+    n_agents, Q, dim = X.shape
+    X = _resample(X, lw, rng)[0]
+    if regularize:
+        h = (4.0 / (Q * (dim + 2))) ** (1.0 / (dim + 4))  # Silverman's factor
+        std = X.std(axis=1, keepdims=True)
+        X = X + h * std * rng.standard_normal(X.shape)
+    return X, np.full((n_agents, Q), -np.log(Q))
