@@ -1,0 +1,73 @@
+"""The command line: results, refusals to overwrite, and errors without tracebacks."""
+
+import json
+
+import pytest
+
+from phyloc.cli import main
+
+TINY = """
+kind = "ranging"
+name = "tiny"
+seed = 1
+[system]
+n_subcarriers = 257
+subcarrier_spacing_hz = 146.5e3
+[network]
+region_m = [60.0, 60.0]
+[ranging]
+methods = ["corr", "sage"]
+[ranging.sage]
+n_paths = 3
+n_iter = 3
+[experiment]
+scenarios = { c2 = "winner2_c2" }
+agents = [4]
+realizations = 1
+awgn_snr_db = [20, 30]
+awgn_links = 60
+"""
+
+
+def test_evaluate_writes_results_and_never_overwrites(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    recipe = tmp_path / "tiny.toml"
+    recipe.write_text(TINY)
+    out = tmp_path / "res"
+    assert main(["evaluate", str(recipe), "--out", str(out)]) == 0
+    doc = json.loads((out / "results.json").read_text())
+    f = doc["figures"]
+    for name in ("corr.c2.rmse_m", "sage.c2.rmse_m", "corr.awgn.crb_ratio_30db", "c2.n_links"):
+        assert name in f
+    assert f["c2.n_links"] == 12  # 4 agents, fully meshed, both directions
+    assert doc["meta"]["seed"] == 1 and "recipe_text" in doc["meta"]
+    assert (out / "tiny.png").stat().st_size > 1000
+    assert (out / "recipe.toml").read_text() == TINY
+    before = (out / "results.json").read_bytes()
+    capsys.readouterr()
+    assert main(["evaluate", str(recipe), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "exists" in err and "--force" in err and "Traceback" not in err
+    assert (out / "results.json").read_bytes() == before
+
+
+def test_bad_inputs_exit_2_with_one_line(tmp_path, capsys):
+    assert main(["channel-stats", "winner2_x"]) == 2
+    err = capsys.readouterr().err
+    assert "valid names" in err and "winner2_c2" in err and "Traceback" not in err
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TINY.replace("realizations = 1", "realizations = 0"))
+    assert main(["evaluate", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "experiment.realizations = 0" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()  # nothing started
+    existing = tmp_path / "b.json"
+    existing.write_text("{}")
+    assert main(["bench", "phy", "--json", str(existing)]) == 2
+    assert existing.read_text() == "{}"
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert "phyloc" in capsys.readouterr().out
