@@ -356,17 +356,18 @@ def _write_shard(task: _ShardTask) -> dict:
             small["channel/paths/gains"] = np.concatenate(path_gains)
             del path_delays, path_gains
             tw = time.perf_counter()
+            sums = {}
             for a in arrays:
                 if a.role == "path":
                     data = small[a.name]
                     d = f.create_dataset(a.name, data=data, **(filt if data.size else {}))
-                    d.attrs["sha256"] = sc.sha256_array(data)
+                    d.attrs["sha256"] = sums[a.name] = sc.sha256_array(data)
                 elif a.name in small:
                     d = f.create_dataset(a.name, data=small[a.name])
-                    d.attrs["sha256"] = sc.sha256_array(small[a.name])
+                    d.attrs["sha256"] = sums[a.name] = sc.sha256_array(small[a.name])
                 else:
                     d = f[a.name]
-                    d.attrs["sha256"] = hashes[a.name].hexdigest()
+                    d.attrs["sha256"] = sums[a.name] = hashes[a.name].hexdigest()
                 _h5_attrs(d, a)
             from phyloc import __version__
 
@@ -395,9 +396,19 @@ def _write_shard(task: _ShardTask) -> dict:
         with contextlib.suppress(OSError):
             tmp.unlink()
         raise
-    with h5py.File(final, "r") as f:
-        record = sc.shard_record(f, final, arrays)
-    record["file_sha256"] = digest
+    record = {  # the row sc.shard_record would read back from the file
+        "index": task.index,
+        "start": task.start,
+        "stop": task.stop,
+        "file": final.name,
+        "file_sha256": digest,
+        "bytes": final.stat().st_size,
+        "max_links": L,
+        "n_links": int(counts.sum()),
+        "n_paths": n_paths,
+        "path_base": [int(x) for x in small["channel/paths/base"]],
+        "arrays": sums,
+    }
     record.update(
         seconds=time.perf_counter() - t_begin,
         simulate_seconds=t_sim,
@@ -683,14 +694,17 @@ def generate(
     S = dspec.n_shards
     with _lock(sdir, out):
         created, known = _previous_master(out, plan, sdir)
+        created = created or _now()
         records: list = [None] * S
         if resume:
             records = _scan_shards(plan, sdir, known)
         reused = sum(rec is not None for rec in records)
         write_master(out, plan, records, created=created)
         crash = _crash_hook()
-        threads = None
-        if scheduler is None and workers and workers > 1:
+        threads = None  # in-process: the kernels may use every core
+        if scheduler is not None:
+            threads = 1  # Dask's model: parallel tasks, one thread each
+        elif workers and workers > 1:
             threads = max(1, _cpus() // workers)
         tasks = [
             _ShardTask(
@@ -938,7 +952,7 @@ def _toml_dumps(doc: dict, prefix: str = "") -> str:
     out = "\n".join(lines)
     for k, val in tables:
         name = f"{prefix}{k}"
-        out += f"\n\n[{name}]\n" + _toml_dumps(val, prefix=f"{name}.")
+        out += f"\n\n[{name}]\n" + _toml_dumps(val, prefix=f"{name}.").rstrip()
     return out.strip() + "\n"
 
 

@@ -1,0 +1,147 @@
+"""Dataset-generation benchmarks: received waveforms (links) generated and stored per second.
+
+Work unit: one *link* — one directed link of one snapshot: its channel draw (WINNER II C2),
+its received OFDM symbol at the DiPNet system (N = 2569 subcarriers), the time-domain
+conversion to complex64 samples, and its share of the shard file (samples, pilots, channel
+truth, SHA-256 checksums, fsync, atomic rename) and of the master file. The recipe is the
+quickstart network: 12 anchor-free agents, fully meshed (132 links per realization), one
+snapshot; 96 realizations (12 672 links) in shards of 4 (``quick``: 24). Figures (names are
+the interface):
+
+``generate_links_per_s_1w``      links/s of :func:`phyloc.datasets.generate` in this process
+                                 (``workers=1``; its Numba kernels and FFTs may use every core)
+``generate_links_per_s_2w``      links/s on a 2-worker Dask ``LocalCluster`` (one process and
+                                 one thread per worker), already started and warmed up: the
+                                 cluster start (a few seconds) is not counted
+``generate_scaling_efficiency``  ``2w / (2 · 1w)``: 1.0 would be perfect scaling over workers;
+                                 on a 2-core machine the 1-worker baseline already uses both
+                                 cores in its parallel kernels, which bounds it well below 1
+``write_mb_per_s``               bytes of shard files written / time spent writing them (HDF5
+                                 writes, close, fsync; summed over the shards of the 1-worker
+                                 run), in 10⁶ B/s
+
+Every run writes to a fresh temporary folder; the best of several runs is reported.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+
+RECIPE = """
+kind = "dataset"
+name = "bench_datasets"
+seed = 1
+
+[system]
+n_subcarriers = 2569
+subcarrier_spacing_hz = 14.65e3
+
+[network]
+n_agents = 12
+region_m = [100.0, 100.0]
+
+[channel]
+scenario = "winner2_c2"
+
+[dataset]
+realizations = {realizations}
+shard_size = 4
+"""
+REALIZATIONS = 96
+REALIZATIONS_QUICK = 24
+
+
+def _recipe(realizations: int) -> str:
+    return RECIPE.format(realizations=realizations)
+
+
+def _run(recipe: str, folder: Path, tag: str, **kw) -> dict:
+    from phyloc.datasets import generate
+
+    return generate(recipe, folder / f"{tag}.h5", progress=False, **kw)
+
+
+class Generate:
+    """asv: generate 24 realizations (3168 links) in this process."""
+
+    def setup(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.n = 0
+        _run(_recipe(1), Path(self.tmp.name), "warm")
+
+    def teardown(self):
+        self.tmp.cleanup()
+
+    def time_generate_1w(self):
+        self.n += 1
+        _run(_recipe(REALIZATIONS_QUICK), Path(self.tmp.name), f"run{self.n}")
+
+
+def report(quick: bool = False) -> dict[str, float]:
+    """Generation throughput with 1 and 2 workers and the write bandwidth (see module doc)."""
+    from dask.distributed import Client, LocalCluster
+
+    n = REALIZATIONS_QUICK if quick else REALIZATIONS
+    repeat = 1 if quick else 2
+    recipe = _recipe(n)
+    old = os.environ.get("PHYLOC_NO_PROGRESS")
+    os.environ["PHYLOC_NO_PROGRESS"] = "1"
+    try:
+        with tempfile.TemporaryDirectory(prefix="phyloc-bench-datasets-") as tmp:
+            folder = Path(tmp)
+            _run(_recipe(1), folder, "warm1")  # JIT caches, scenario files, FFT plans
+            one = [_run(recipe, folder, f"w1_{i}") for i in range(repeat)]
+            with contextlib.ExitStack() as stack:
+                cluster = stack.enter_context(
+                    LocalCluster(
+                        n_workers=2,
+                        threads_per_worker=1,
+                        processes=True,
+                        dashboard_address=None,
+                        silence_logs=40,
+                    )
+                )
+                stack.enter_context(Client(cluster))
+                addr = cluster.scheduler_address
+                _run(
+                    _recipe(2).replace("shard_size = 4", "shard_size = 1"),
+                    folder,
+                    "warm2",
+                    scheduler=addr,
+                )  # both workers import phyloc and load the kernels
+                two = [_run(recipe, folder, f"w2_{i}", scheduler=addr) for i in range(repeat)]
+    finally:
+        if old is None:
+            os.environ.pop("PHYLOC_NO_PROGRESS", None)
+        else:
+            os.environ["PHYLOC_NO_PROGRESS"] = old
+    rate1 = max(s["links_per_s"] for s in one)
+    rate2 = max(s["links_per_s"] for s in two)
+    write = max(s["write_mb_per_s"] for s in one)
+    return {
+        "generate_links_per_s_1w": rate1,
+        "generate_links_per_s_2w": rate2,
+        "generate_scaling_efficiency": rate2 / (2.0 * rate1),
+        "write_mb_per_s": write,
+    }
+
+
+def summarize(fig: dict) -> str:
+    """The printed form of :func:`report`: links/s and µs per link for 1 and 2 workers, the
+    scaling efficiency and the write bandwidth."""
+    from phyloc.reporting import format_table
+
+    r1, r2 = fig["generate_links_per_s_1w"], fig["generate_links_per_s_2w"]
+    rows = [
+        ("generate, 1 worker (in-process)", r1, 1e6 / r1),
+        ("generate, 2 Dask workers", r2, 1e6 / r2),
+    ]
+    table = format_table(rows, ["run", "links/s", "us/link"])
+    return (
+        f"{table}\n"
+        f"scaling efficiency 2w/(2*1w): {fig['generate_scaling_efficiency']:.2f}\n"
+        f"shard write bandwidth: {fig['write_mb_per_s']:.1f} MB/s"
+    )
