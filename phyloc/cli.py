@@ -5,6 +5,12 @@ Commands
         Run benchmarks; print cost per unit of work and ratios to references.
     ``phyloc evaluate RECIPE [--fast] [--out DIR] [--json PATH] [--workers N | --scheduler ADDR]``
         Run an experiment recipe; write ``results.json``, the recipe and a PNG into DIR.
+    ``phyloc generate RECIPE -o OUT.h5 [--workers N | --scheduler ADDR] [--resume]``
+        Generate an HDF5 waveform dataset (sharded, resumable).
+    ``phyloc info OUT.h5 [--verify] [--json PATH]``
+        Summarize a dataset; with ``--verify`` check every checksum.
+    ``phyloc quickstart [--dir DIR]``
+        Generate the small urban quickstart dataset and compare DiPNet with two-step methods.
     ``phyloc channel-stats SCENARIO [--square SIDE_M] [--links N] [--seed S] [--png PATH]
     [--json PATH]``
         Draw links of a channel scenario and compare realized statistics with its table.
@@ -18,8 +24,9 @@ import argparse
 import importlib
 import sys
 import time
+from datetime import UTC
 
-from phyloc.errors import PhylocError
+from phyloc.errors import PhylocError, ValidationError
 
 BENCHMARKS = {
     "phy": "phyloc.benchmarks.bench_phy",
@@ -28,6 +35,22 @@ BENCHMARKS = {
     "dipnet": "phyloc.benchmarks.bench_dipnet",
     "datasets": "phyloc.benchmarks.bench_datasets",
 }
+
+
+def _add_cluster(p):
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="run tasks on a local Dask cluster of N processes (default: in-process)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run tasks on an existing Dask scheduler (tcp://host:port)",
+    )
 
 
 def _add_json(p):
@@ -59,8 +82,51 @@ def build_parser() -> argparse.ArgumentParser:
     _add_json(b)
     b.set_defaults(func=cmd_bench)
 
-    e = sub.add_parser("evaluate", help="run an experiment recipe (datasets/*.toml)")
-    e.add_argument("recipe", help="path of a recipe TOML file")
+    g = sub.add_parser("generate", help="generate an HDF5 waveform dataset from a recipe")
+    g.add_argument(
+        "recipe", help='dataset recipe (kind = "dataset", e.g. datasets/quickstart_c2.toml)'
+    )
+    g.add_argument("-o", "--output", required=True, metavar="OUT.h5", help="master HDF5 file")
+    _add_cluster(g)
+    g.add_argument(
+        "--resume",
+        action="store_true",
+        help="complete an interrupted run: redo only missing or corrupt shards",
+    )
+    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    g.add_argument("--json", metavar="PATH", help="also write the summary as JSON")
+    g.add_argument("--force", action="store_true", help="replace an existing --json file")
+    g.set_defaults(func=cmd_generate)
+
+    i = sub.add_parser("info", help="summarize a dataset (and verify its checksums)")
+    i.add_argument("dataset", help="master HDF5 file written by phyloc generate")
+    i.add_argument("--verify", action="store_true", help="check every shard's checksums")
+    _add_json(i)
+    i.set_defaults(func=cmd_info)
+
+    q = sub.add_parser(
+        "quickstart",
+        help="generate a small C2 dataset and compare DiPNet with "
+        "two-step localization on it (about two minutes on 2 cores)",
+    )
+    q.add_argument(
+        "--dir",
+        default="quickstart",
+        metavar="DIR",
+        help="where the dataset and a new results folder go (default ./quickstart)",
+    )
+    q.add_argument(
+        "--workers",
+        type=int,
+        default=2,
+        metavar="N",
+        help="Dask worker processes for generation and evaluation (default 2)",
+    )
+    q.add_argument("--no-progress", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_quickstart)
+
+    e = sub.add_parser("evaluate", help="run an experiment recipe or evaluate a dataset")
+    e.add_argument("recipe", help="a recipe TOML file (datasets/*.toml) or a dataset (.h5)")
     e.add_argument(
         "--fast", action="store_true", help="the recipe's [experiment.fast] setting (small, for CI)"
     )
@@ -197,30 +263,45 @@ def cmd_evaluate(args) -> int:
     from phyloc.config import load_recipe
     from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
 
-    recipe = load_recipe(args.recipe)
-    exp = importlib.import_module(EXPERIMENTS[recipe.kind])
-    out = Path(args.out or Path("results") / (recipe.name + ("-fast" if args.fast else "")))
+    source = Path(args.recipe)
+    if source.suffix in (".h5", ".hdf5") or _is_hdf5(source):
+        exp = importlib.import_module(EXPERIMENTS["localization"])
+        name = source.stem
+        recipe = None
+    else:
+        recipe = load_recipe(args.recipe)
+        if recipe.kind not in EXPERIMENTS:
+            raise ValidationError(
+                "kind",
+                recipe.kind,
+                f"evaluate runs {', '.join(EXPERIMENTS)} "
+                "recipes; generate a dataset recipe with phyloc generate",
+            )
+        exp = importlib.import_module(EXPERIMENTS[recipe.kind])
+        name = recipe.name
+    out = Path(args.out or Path("results") / (name + ("-fast" if args.fast else "")))
     if out.exists() and any(out.iterdir()) and not args.force:
         raise OutputExistsError(out)
     if args.json and Path(args.json).exists() and not args.force:
         raise OutputExistsError(args.json)
     t0 = time.perf_counter()
-    res = exp.run(
-        recipe,
-        fast=args.fast,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        progress=not args.no_progress,
-    )
+    kw = {
+        "fast": args.fast,
+        "workers": args.workers,
+        "scheduler": args.scheduler,
+        "progress": not args.no_progress,
+    }
+    res = exp.run(recipe, **kw) if recipe is not None else exp.run_dataset(source, **kw)
+    text = recipe.text if recipe is not None else _dataset_recipe_text(source)
     res["meta"].update(
-        {"seconds": time.perf_counter() - t0, "machine": machine_meta(), "recipe_text": recipe.text}
+        {"seconds": time.perf_counter() - t0, "machine": machine_meta(), "recipe_text": text}
     )
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "results.json", res["figures"], res["meta"], res["series"], force=True)
-    (out / "recipe.toml").write_text(recipe.text)
-    png = out / f"{recipe.name}.png"
+    (out / "recipe.toml").write_text(text)
+    png = out / f"{name}.png"
     exp.plot(res, png)
-    print(f"{recipe.name}{' (fast)' if args.fast else ''}: {res['meta']['seconds']:.1f} s")
+    print(f"{name}{' (fast)' if args.fast else ''}: {res['meta']['seconds']:.1f} s")
     headers = exp.summary_headers(res) if hasattr(exp, "summary_headers") else exp.SUMMARY_HEADERS
     print(format_table(exp.summary_rows(res), headers))
     for line in getattr(exp, "summary_lines", lambda r: [])(res):
@@ -230,6 +311,165 @@ def cmd_evaluate(args) -> int:
         write_json(args.json, res["figures"], res["meta"], res["series"], force=args.force)
         print(f"wrote {args.json}")
     return 0
+
+
+def _is_hdf5(path) -> bool:
+    try:
+        import h5py
+
+        return path.is_file() and h5py.is_hdf5(path)
+    except OSError:
+        return False
+
+
+def _dataset_recipe_text(path) -> str:
+    from phyloc.datasets import open as open_dataset
+
+    with open_dataset(path) as ds:
+        return ds.recipe
+
+
+# -- generate / info / quickstart --------------------------------------------------------------
+def cmd_generate(args) -> int:
+    """``phyloc generate``: write a sharded HDF5 dataset (see :func:`phyloc.datasets.generate`)."""
+    from pathlib import Path
+
+    from phyloc.config import load_recipe
+    from phyloc.datasets import generate
+    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+
+    if args.json and Path(args.json).exists() and not args.force:
+        raise OutputExistsError(args.json)
+    recipe = load_recipe(args.recipe)
+    if recipe.kind != "dataset":
+        raise ValidationError(
+            "kind",
+            recipe.kind,
+            "phyloc generate takes a dataset recipe "
+            '(kind = "dataset"); run experiment recipes with phyloc evaluate',
+        )
+    summary = generate(
+        recipe,
+        args.output,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        resume=args.resume,
+        progress=not args.no_progress,
+    )
+    rows = [(k, v) for k, v in summary.items() if isinstance(v, (int, float))]
+    print(format_table(rows, ["generated " + str(summary.get("path", args.output)), ""]))
+    if args.json:
+        meta = {
+            "command": "generate",
+            "recipe": recipe.name,
+            "seed": recipe.seed,
+            "machine": machine_meta(),
+        }
+        write_json(args.json, {k: v for k, v in rows}, meta, force=args.force)
+        print(f"wrote {args.json}")
+    return 0
+
+
+def cmd_info(args) -> int:
+    """``phyloc info``: summary of a dataset; exit status 1 when ``--verify`` finds damage."""
+    from pathlib import Path
+
+    from phyloc.datasets import info
+    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+
+    if args.json and Path(args.json).exists() and not args.force:
+        raise OutputExistsError(args.json)
+    res = info(args.dataset, verify=args.verify)
+    flat = {}
+    for k, v in res.items():
+        if isinstance(v, dict):
+            for k2, v2 in v.items():
+                flat[f"{k}.{k2}"] = v2
+        else:
+            flat[k] = v
+    rows = [
+        (k, v if isinstance(v, (int, float, str)) or v is None else str(v)) for k, v in flat.items()
+    ]
+    print(format_table(rows, [str(args.dataset), ""]))
+    if args.json:
+        figs = {
+            k: v for k, v in flat.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
+        }
+        write_json(
+            args.json,
+            figs,
+            {
+                "command": "info",
+                "dataset": str(args.dataset),
+                "info": flat,
+                "machine": machine_meta(),
+            },
+            force=args.force,
+        )
+        print(f"wrote {args.json}")
+    verified = res.get("verify", {})
+    if args.verify and isinstance(verified, dict) and not verified.get("ok", True):
+        print(
+            "phyloc: verify found missing or corrupt shards; repair with "
+            "phyloc generate RECIPE -o FILE --resume",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def cmd_quickstart(args) -> int:
+    """``phyloc quickstart``: the README's main job (generate, then evaluate, in DIR)."""
+    from datetime import datetime
+    from importlib.resources import files
+    from pathlib import Path
+
+    from phyloc.config import load_recipe
+
+    root = Path(args.dir)
+    root.mkdir(parents=True, exist_ok=True)
+    try:
+        text = (files("phyloc.recipes") / "quickstart_c2.toml").read_text()
+    except (ModuleNotFoundError, FileNotFoundError):
+        text = None  # a source checkout imported from its working tree
+    recipe_path = root / "quickstart_c2.toml"
+    if not recipe_path.exists():
+        recipe_path.write_text(text if text is not None else _quickstart_recipe_text())
+    recipe = load_recipe(recipe_path)
+    h5 = root / "quickstart_c2.h5"
+    print(f"== 1/2 generate {h5} (resumes if it exists) ==", flush=True)
+    gen = argparse.Namespace(
+        recipe=str(recipe_path),
+        output=str(h5),
+        workers=args.workers,
+        scheduler=None,
+        resume=h5.exists(),
+        no_progress=args.no_progress,
+        json=None,
+        force=False,
+    )
+    cmd_generate(gen)
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    out = root / f"results-{stamp}"
+    print(f"\n== 2/2 evaluate DiPNet and two-step methods on {h5} ==", flush=True)
+    ev = argparse.Namespace(
+        recipe=str(h5),
+        fast=False,
+        out=str(out),
+        workers=args.workers,
+        scheduler=None,
+        no_progress=args.no_progress,
+        json=None,
+        force=False,
+    )
+    del recipe
+    return cmd_evaluate(ev)
+
+
+def _quickstart_recipe_text() -> str:
+    from pathlib import Path
+
+    return (Path(__file__).resolve().parents[1] / "datasets" / "quickstart_c2.toml").read_text()
 
 
 # -- channel-stats ---------------------------------------------------------------------------

@@ -170,24 +170,56 @@ def _priors(init, net, links, corr, lspec, rng):
         centers = informed_centers(pos[agents], lspec.informed_std_m, rng=rng)
         std, label = lspec.informed_std_m, "informed start"
     else:
-        sol = coarse_positions(
-            links,
-            corr.range_m,
-            net.n_nodes,
-            net.dim,
-            valid=corr.valid,
-            is_anchor=net.is_anchor,
-            anchor_positions=pos[net.is_anchor] if net.n_anchors else None,
-        )
+        anchors = pos[net.is_anchor] if net.n_anchors else None
+        try:
+            sol = coarse_positions(
+                links,
+                corr.range_m,
+                net.n_nodes,
+                net.dim,
+                valid=corr.valid,
+                is_anchor=net.is_anchor,
+                anchor_positions=anchors,
+            )
+        except ValidationError:
+            # some node has no detected range (weak links): use every link's strongest peak
+            sol = coarse_positions(
+                links,
+                corr.range_m,
+                net.n_nodes,
+                net.dim,
+                is_anchor=net.is_anchor,
+                anchor_positions=anchors,
+            )
         centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
     X = gaussian_priors(centers, std, Q, rng)
     return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label)
 
 
 def _task(payload, seed_seq):
+    """Simulate one realization (stream: the task's seed sequence itself) and localize."""
     system, net_spec, chan_spec, rspec, lspec, methods, inits = payload
+    real = simulate_realization(system, net_spec, chan_spec, np.random.default_rng(seed_seq))
+    return _localize(real, system, rspec, lspec, methods, inits, seed_seq)
+
+
+def _dataset_task(payload, seed_seq):
+    """Read one stored realization and localize (same streams as the in-memory path)."""
+    from phyloc.datasets import open as open_dataset
+
+    path, r, rspec, lspec, methods, inits = payload
+    with open_dataset(path) as ds:
+        real = ds.realization(r)
+        system = ds.system
+    return _localize(real, system, rspec, lspec, methods, inits, seed_seq)
+
+
+def _localize(real, system, rspec, lspec, methods, inits, seed_seq):
+    """Ranging and every localization method on snapshot 0 of a realization.
+
+    The randomness of the priors and of each method comes from children of ``seed_seq``
+    (spawned after the signals were drawn from the sequence itself)."""
     streams = seed_seq.spawn(2 + len(inits) * (1 + len(methods)))
-    real = simulate_realization(system, net_spec, chan_spec, np.random.default_rng(streams[0]))
     net, links, draw = real.network, real.links[0], real.channels[0]
     d = net.distances(0)
     tx = links[:, 1]
@@ -285,10 +317,35 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         desc="localization",
         progress=progress,
     )
+    figures, series = _aggregate(keys, results, exp, list(specs))
+    meta = {
+        "recipe": recipe.name,
+        "kind": recipe.kind,
+        "seed": recipe.seed,
+        "fast": fast,
+        "agents": list(exp.agents),
+        "realizations": exp.realizations,
+        "scenarios": dict(exp.scenarios),
+        "methods": list(exp.methods),
+        "inits": {i: i.replace("_", "-") for i in exp.inits},
+        "labels": {
+            "informed": "informed start (truth + N(0, σ0²))",
+            "gauge": "uninformative gauge priors",
+            "truth_free": "truth-free",
+            "sage_los": "oracle: NLOS links rejected by ground truth",
+        },
+        "n_particles": lspec.dpf.n_particles,
+        "n_iterations": lspec.dpf.n_iterations,
+    }
+    return {"figures": figures, "series": series, "meta": meta}
+
+
+def _aggregate(keys, results, exp, tokens):
+    """Pool the per-realization outputs (keyed ``(token, n_agents, realization)``)."""
     figures: dict[str, float] = {}
     series: dict[str, object] = {"cdf_grid_m": CDF_GRID_M}
     n_max = max(exp.agents)
-    for tok in specs:
+    for tok in tokens:
         parts = [res for (t, _, _), res in zip(keys, results, strict=True) if t == tok]
         le = np.concatenate([p["link_err_corr"] for p in parts])
         lv = np.concatenate([p["link_valid_corr"] for p in parts])
@@ -329,9 +386,57 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
             figures[f"{m}.runtime_per_agent_iteration_s"] = float(
                 np.mean([r[f"{m}|{i}|sec_per_agent_it"] for r in results for i in exp.inits])
             )
+    return figures, series
+
+
+def run_dataset(path, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run the localization methods on the waveforms of a dataset (``phyloc generate``).
+
+    Methods, initializations and filter options come from the dataset's stored recipe
+    (``[experiment]`` methods/inits, ``[ranging]``, ``[localization]``; defaults otherwise);
+    every realization is one task, seeded like the realization itself, so the results equal
+    those of the same recipe evaluated in memory (up to the complex64 storage of the samples).
+    With ``fast`` only the first realization is used.
+    """
+    from phyloc.datasets import open as open_dataset
+
+    with open_dataset(path) as ds:
+        recipe = ds.load_recipe()
+        n_real = ds.n_realizations
+        net = ds.realization(0).network
+    raw = dict(recipe.section("experiment"))
+    raw.pop("fast", None)
+    chan = recipe.section("channel", ChannelSpec)
+    scenario = chan.scenario
+    token = scenario.split("_", 1)[1] if scenario.startswith("winner2_") else scenario
+    exp = LocalizationExperimentSpec(
+        scenarios={token: scenario},
+        agents=(net.n_agents,),
+        realizations=1 if fast else n_real,
+        methods=tuple(raw.get("methods", METHODS)),
+        inits=tuple(raw.get("inits", ("truth_free",))),
+        cdf_agents=(net.n_agents,),
+    )
+    rspec = recipe.section("ranging", RangingSpec)
+    lspec = recipe.section("localization", LocalizationSpec)
+    payloads = [
+        (str(path), r, rspec, lspec, exp.methods, exp.inits) for r in range(exp.realizations)
+    ]
+    keys = [(token, net.n_agents, r) for r in range(exp.realizations)]
+    results = run_tasks(
+        _dataset_task,
+        payloads,
+        recipe.seed,
+        workers=workers,
+        scheduler=scheduler,
+        desc="localization",
+        progress=progress,
+    )
+    figures, series = _aggregate(keys, results, exp, [token])
     meta = {
         "recipe": recipe.name,
-        "kind": recipe.kind,
+        "kind": "localization",
+        "dataset": str(path),
         "seed": recipe.seed,
         "fast": fast,
         "agents": list(exp.agents),
@@ -341,8 +446,6 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         "inits": {i: i.replace("_", "-") for i in exp.inits},
         "labels": {
             "informed": "informed start (truth + N(0, σ0²))",
-            "gauge": "uninformative gauge priors",
-            "truth_free": "truth-free",
             "sage_los": "oracle: NLOS links rejected by ground truth",
         },
         "n_particles": lspec.dpf.n_particles,

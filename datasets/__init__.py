@@ -1,0 +1,1 @@
+"""Recipes (TOML) shipped with phyloc as ``phyloc.recipes`` (see README.md here)."""
