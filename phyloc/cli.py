@@ -407,8 +407,7 @@ def cmd_info(args) -> int:
             force=args.force,
         )
         print(f"wrote {args.json}")
-    verified = res.get("verify", {})
-    if args.verify and isinstance(verified, dict) and not verified.get("ok", True):
+    if args.verify and not res.get("ok", True):
         print(
             "phyloc: verify found missing or corrupt shards; repair with "
             "phyloc generate RECIPE -o FILE --resume",

@@ -71,3 +71,27 @@ def test_version(capsys):
         main(["--version"])
     assert exc.value.code == 0
     assert "phyloc" in capsys.readouterr().out
+
+
+def test_generate_info_and_verify_from_the_command_line(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    recipe = tmp_path / "d.toml"
+    recipe.write_text(
+        'kind = "dataset"\nname = "d"\nseed = 3\n[system]\nn_subcarriers = 65\n'
+        "[network]\nn_agents = 3\n[channel]\nscenario = \"awgn\"\n"
+        "[dataset]\nrealizations = 2\nshard_size = 1\n"
+    )
+    h5 = tmp_path / "d.h5"
+    assert main(["generate", str(recipe), "-o", str(h5)]) == 0
+    assert main(["generate", str(recipe), "-o", str(h5)]) == 2  # never overwritten
+    assert "--resume" in capsys.readouterr().err
+    assert main(["info", str(h5), "--verify", "--json", str(tmp_path / "i.json")]) == 0
+    shard = sorted((tmp_path / "d.h5.shards").glob("shard-*.h5"))[0]
+    data = bytearray(shard.read_bytes())
+    data[len(data) // 2] ^= 0xFF  # flip a bit in the middle of the shard
+    shard.write_bytes(bytes(data))
+    assert main(["info", str(h5), "--verify"]) == 1
+    assert main(["generate", str(recipe), "-o", str(h5), "--resume"]) == 0
+    assert main(["info", str(h5), "--verify"]) == 0
+    assert main(["evaluate", str(recipe)]) == 2  # a dataset recipe is not an experiment
+    assert "phyloc generate" in capsys.readouterr().err
