@@ -34,6 +34,7 @@ BENCHMARKS = {
     "ranging": "phyloc.benchmarks.bench_ranging",
     "dipnet": "phyloc.benchmarks.bench_dipnet",
     "datasets": "phyloc.benchmarks.bench_datasets",
+    "pfbp": "phyloc.benchmarks.bench_pfbp",
 }
 
 

@@ -10,14 +10,19 @@ from phyloc.analysis.efim import (
     ranging_information,
     spectral_moment2,
 )
+from phyloc.analysis.pcrlb import PCRLBResult, pcrlb, pcrlb_recursion, range_information
 
 __all__ = [
+    "PCRLBResult",
     "direction_vectors",
     "efim",
     "equivalent_noise_variance",
     "equivalent_ranging_information",
+    "pcrlb",
+    "pcrlb_recursion",
     "position_crb",
     "projected_variance",
+    "range_information",
     "ranging_information",
     "spectral_moment2",
 ]

@@ -7,6 +7,7 @@ informed and gauge priors).
 """
 
 from phyloc.localization.dpf import DPFOptions, DPFResult, Prior, run_dpf, run_tracking
+from phyloc.localization.edh import run_edh
 from phyloc.localization.initialization import (
     INFORMED_START_STD_M,
     CoarseSolution,
@@ -23,6 +24,16 @@ from phyloc.localization.initialization import (
     smacof,
 )
 from phyloc.localization.likelihoods import DirectLikelihood, GaussianRangeLikelihood
+from phyloc.localization.pfbp import PFBPOptions, run_pfbp
+from phyloc.localization.range_models import (
+    RangeModel,
+    RangeScenario,
+    paper_prior,
+    scenario_network_spec,
+    simulate_scenario,
+    state_errors,
+)
+from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
 
 __all__ = [
     "INFORMED_START_STD_M",
@@ -31,7 +42,11 @@ __all__ = [
     "DPFResult",
     "DirectLikelihood",
     "GaussianRangeLikelihood",
+    "PFBPOptions",
     "Prior",
+    "RangeModel",
+    "RangeScenario",
+    "SIRBPOptions",
     "classical_mds",
     "coarse_positions",
     "gauge_log_prior",
@@ -39,10 +54,17 @@ __all__ = [
     "gaussian_log_prior",
     "gaussian_priors",
     "informed_centers",
+    "paper_prior",
     "range_matrix",
     "raw_stress",
     "run_dpf",
+    "run_edh",
+    "run_pfbp",
+    "run_sirbp",
     "run_tracking",
+    "scenario_network_spec",
     "shortest_path_completion",
+    "simulate_scenario",
     "smacof",
+    "state_errors",
 ]

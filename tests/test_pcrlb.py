@@ -1,0 +1,75 @@
+"""PCRLB (Tichavský recursion) against the Kalman filter and brute-force Fisher information."""
+
+import numpy as np
+import pytest
+
+from phyloc.analysis.pcrlb import pcrlb, pcrlb_recursion, range_information
+from phyloc.errors import ValidationError
+from phyloc.localization import _flow
+from phyloc.localization.range_models import RangeModel, RangeScenario
+from phyloc.network.motion import transition_matrices
+
+
+def test_recursion_equals_kalman_covariance(rng):
+    """Linear-Gaussian CA model (singular Q), time-varying linear measurements."""
+    F, Q = transition_matrices("constant_acceleration", 2, 0.1, 0.5)
+    n, K = F.shape[0], 12
+    A0 = rng.normal(size=(n, n))
+    P = A0 @ A0.T + np.eye(n)
+    J0 = np.linalg.inv(P)
+    Hs = [rng.normal(size=(3, n)) * (k % 3 != 1) for k in range(K)]  # some steps without info
+    R = np.diag([0.1, 0.2, 0.3])
+    Jz = np.stack([H.T @ np.linalg.inv(R) @ H for H in Hs])
+    got = pcrlb_recursion(J0, F, Q, Jz)
+    for k, H in enumerate(Hs):  # Kalman filter in gain (Joseph) form
+        P = F @ P @ F.T + Q
+        S = H @ P @ H.T + R
+        G = P @ H.T @ np.linalg.inv(S)
+        IKH = np.eye(n) - G @ H
+        P = IKH @ P @ IKH.T + G @ R @ G.T
+        np.testing.assert_allclose(got[k], P, rtol=1e-7, atol=1e-10)
+
+
+def test_range_information_equals_jacobian_outer_product(rng):
+    """J_z = Hᵀ H / σ² with H the brute-force Jacobian of every measured range."""
+    n_ag, dim, nd, sigma = 3, 3, 6, 0.2
+    p = rng.uniform(0, 10, size=(n_ag, dim))
+    anchors = rng.uniform(0, 10, size=(2, dim))
+    measured = np.zeros((n_ag, n_ag + 2), bool)
+    measured[0, 1] = measured[1, 0] = measured[0, 3] = measured[2, 4] = measured[2, 0] = True
+    J = range_information(p, anchors, measured, sigma, nd)
+    x = np.zeros(n_ag * nd)
+    for i in range(n_ag):
+        x[i * nd : i * nd + dim] = p[i]
+    rows = []
+    for i, j in zip(*np.nonzero(measured), strict=True):
+        off_b = -1 if j >= n_ag else j * nd
+        apos = anchors[j - n_ag][None] if j >= n_ag else np.zeros((1, dim))
+        H, _ = _flow.range_linearization(x, np.array([i * nd]), np.array([off_b]), apos, dim)
+        rows.append(H[0])
+    H = np.array(rows)
+    np.testing.assert_allclose(J, H.T @ H / sigma**2, atol=1e-9)
+
+
+def test_pcrlb_static_single_step_closed_form():
+    """One agent, static model, one step: C = (P0⁻¹ + Σ u uᵀ/σ²)⁻¹; bound = sqrt(tr C)."""
+    model = RangeModel("static", 2, sigma_r=0.1)
+    anchors = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]])
+    x = np.array([[3.0, 4.0]])
+    z = np.full((1, 1, 4), np.nan)
+    z[0, 0, 1:] = 1.0  # measured to the three anchors (values do not enter the bound)
+    sc = RangeScenario(model, anchors, x, x[None], z)
+    P0 = np.eye(2)[None] * 4.0
+    res = pcrlb([sc, sc], P0)
+    u = (x[0] - anchors) / np.linalg.norm(x[0] - anchors, axis=1, keepdims=True)
+    C = np.linalg.inv(np.eye(2) / 4.0 + u.T @ u / 0.01)
+    np.testing.assert_allclose(res.cov[0], C)
+    np.testing.assert_allclose(res.bounds["p"], [np.sqrt(np.trace(C))])
+    assert set(res.bounds) == {"p"}
+
+
+def test_pcrlb_validation():
+    with pytest.raises(ValidationError, match="scenarios"):
+        pcrlb([], np.eye(2)[None])
+    with pytest.raises(ValidationError):
+        pcrlb_recursion(np.eye(2), np.eye(3), np.eye(3), np.zeros((1, 3, 3)))

@@ -1,0 +1,306 @@
+"""PF-BP, EDH, SIR-BP and the range models (PF-BP paper), against closed forms and the PCRLB."""
+
+import numpy as np
+import pytest
+
+from phyloc.analysis.pcrlb import pcrlb
+from phyloc.errors import ValidationError
+from phyloc.localization import _flow
+from phyloc.localization.edh import run_edh
+from phyloc.localization.pfbp import PFBPOptions, run_pfbp
+from phyloc.localization.range_models import (
+    RangeModel,
+    RangeScenario,
+    agent_measurements,
+    all_measurements,
+    paper_prior,
+    scenario_network_spec,
+    simulate_scenario,
+    state_errors,
+)
+from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
+from phyloc.network import make_network
+
+
+def _linear_problem(rng, n=6, L=3):
+    A0 = rng.normal(size=(n, n))
+    P = A0 @ A0.T + np.eye(n)
+    H = rng.normal(size=(L, n))
+    R = np.diag(rng.uniform(0.05, 0.2, L))
+    m = rng.normal(size=n)
+    z = H @ rng.multivariate_normal(m, P) + rng.multivariate_normal(np.zeros(L), R)
+    S = H @ P @ H.T + R
+    K = P @ H.T @ np.linalg.inv(S)
+    return P, H, R, m, z, m + K @ (z - H @ m), (np.eye(n) - K @ H) @ P
+
+
+def _scenario(seed, n_agents=5, n_steps=5, motion="constant_acceleration", r_max=None, dim=3):
+    rng = np.random.default_rng(seed)
+    net = make_network(scenario_network_spec(n_agents, n_steps, motion=motion, dim=dim), rng)
+    sc = simulate_scenario(net, RangeModel(motion, dim), rng, comm_range_m=r_max)
+    return sc, rng
+
+
+# ---- pseudo-time schedule and flow kernels --------------------------------------------------
+def test_lambda_schedule_is_exponential_and_ends_at_one():
+    lam, steps = _flow.lambda_schedule(20, 1.2)
+    assert lam[-1] == 1.0 and np.isclose(steps.sum(), 1.0)
+    np.testing.assert_allclose(steps[1:] / steps[:-1], 1.2)
+    np.testing.assert_allclose(np.cumsum(steps), lam)
+
+
+def test_edh_flow_matches_kalman_posterior_and_weights_are_uniform(rng):
+    P, H, R, m, z, m_kf, P_kf = _linear_problem(rng)
+    M = 20_000
+    X = rng.multivariate_normal(m, P, size=M)
+    lam, steps = _flow.lambda_schedule(400, 1.01)
+    X1, mean1 = _flow.edh_flow(X, m, P, lambda x: (H, H @ x), z, R, lam, steps)
+    sd = np.sqrt(np.diag(P_kf))
+    assert np.all(np.abs(X1.mean(axis=0) - m_kf) < 5 * sd / np.sqrt(M) + 0.01 * sd)
+    assert np.all(np.abs(mean1 - m_kf) < 0.02 * sd)  # deterministic mean flow
+    np.testing.assert_allclose(np.cov(X1.T), P_kf, atol=0.03 * np.abs(P_kf).max())
+    ll = -0.5 * np.sum((z - X1 @ H.T) ** 2 / np.diag(R), axis=1)
+    lw = _flow.invertible_flow_log_weights(X, X1, m, P, ll)
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    assert 1.0 / np.sum(w * w) > 0.99 * M  # uniform weights
+
+
+def test_invertible_weights_correct_a_coarse_flow(rng):
+    """With 20 λ-steps the flowed cloud is off, the weighted one is the Kalman posterior."""
+    P, H, R, m, z, m_kf, P_kf = _linear_problem(rng)
+    M = 40_000
+    X = rng.multivariate_normal(m, P, size=M)
+    lam, steps = _flow.lambda_schedule(20, 1.2)
+    X1, _ = _flow.edh_flow(X, m, P, lambda x: (H, H @ x), z, R, lam, steps)
+    ll = -0.5 * np.sum((z - X1 @ H.T) ** 2 / np.diag(R), axis=1)
+    lw = _flow.invertible_flow_log_weights(X, X1, m, P, ll)
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    sd = np.sqrt(np.diag(P_kf))
+    ess = 1.0 / np.sum(w * w)
+    assert np.all(np.abs(w @ X1 - m_kf) < 5 * sd / np.sqrt(ess))
+
+
+def test_flow_parameters_closed_form(rng):
+    P, H, R, m, z, *_ = _linear_problem(rng)
+    e = rng.normal(size=z.size)
+    lam = 0.3
+    A, b = _flow.flow_parameters(P, H, R, z, e, m, lam)
+    A_ref = -0.5 * P @ H.T @ np.linalg.inv(lam * H @ P @ H.T + R) @ H
+    eye = np.eye(m.size)
+    b_ref = (eye + 2 * lam * A_ref) @ (
+        (eye + lam * A_ref) @ P @ H.T @ np.linalg.inv(R) @ (z - e) + A_ref @ m
+    )
+    np.testing.assert_allclose(A, A_ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(b, b_ref, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("n_flow", [9, 27])
+def test_range_flow_kernel_equals_numpy_twin(rng, n_flow):
+    dim, n = 3, 27
+    P = np.diag(rng.uniform(1, 4, n))
+    mean = rng.normal(size=n) * 5
+    X = mean + rng.normal(size=(64, n)) * 2
+    off_a = np.array([0, 0, 9, 0, 18], np.int64)
+    off_b = np.array([-1, 9, 18, -1, -1], np.int64)
+    anchors = rng.normal(size=(5, dim)) * 10
+    anchors[4] = mean[18:21]  # zero distance at the mean: degenerate Jacobian row
+    z = rng.uniform(3, 9, 5)
+    r_var = np.full(5, 0.01)
+    lam, steps = _flow.lambda_schedule(20)
+    Xa, ma = _flow.range_flow_numpy(
+        X, mean, P, off_a, off_b, anchors, z, r_var, dim, n_flow, lam, steps
+    )
+    Xb, mb = X.copy(), mean.copy()
+    _flow.range_flow_kernel(Xb, mb, P, off_a, off_b, anchors, z, r_var, dim, n_flow, lam, steps)
+    assert np.all(np.isfinite(Xb))
+    np.testing.assert_allclose(Xb, Xa, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(mb, ma, rtol=1e-9, atol=1e-9)
+    np.testing.assert_array_equal(Xb[:, n_flow:], X[:, n_flow:])  # neighbours stay (eq. (21))
+
+
+def test_range_linearization_matches_finite_differences(rng):
+    x = rng.normal(size=18) * 4
+    off_a, off_b = np.array([0, 0], np.int64), np.array([-1, 9], np.int64)
+    anchors = rng.normal(size=(2, 3)) * 10
+    H, h = _flow.range_linearization(x, off_a, off_b, anchors, 3)
+    eps = 1e-6
+    for c in range(18):
+        dx = np.zeros(18)
+        dx[c] = eps
+        fd = (_flow.range_linearization(x + dx, off_a, off_b, anchors, 3)[1] - h) / eps
+        np.testing.assert_allclose(H[:, c], fd, atol=1e-5)
+
+
+@pytest.mark.parametrize("my", [1, 50])
+def test_paired_loglik_kernel_equals_numpy_twin(rng, my):
+    x, y = rng.normal(size=(50, 3)), rng.normal(size=(my, 3))
+    out = np.full(50, 1.5)
+    _flow.paired_range_loglik_kernel(x, y, 1.2, 100.0, out)
+    np.testing.assert_allclose(out, 1.5 + _flow.paired_range_loglik_numpy(x, y, 1.2, 100.0))
+
+
+def test_ukf_update_matches_kalman_in_the_linear_regime(rng):
+    """A far anchor makes the range nearly linear: the UKF covariance is the Kalman one."""
+    P = np.diag([0.04, 0.09, 0.01, 1.0, 1.0, 1.0])
+    mean = np.array([1.0, 2.0, 3.0, 0.0, 0.0, 0.0])
+    anchors = np.array([[1e4, 2.0, 3.0], [1.0, -1e4, 3.0]])
+    off_a, off_b = np.zeros(2, np.int64), np.full(2, -1, np.int64)
+    r_var = np.array([0.01, 0.02])
+    out = _flow.ukf_covariance_update(mean, P, off_a, off_b, anchors, r_var, 3, 6)
+    H, _ = _flow.range_linearization(mean, off_a, off_b, anchors, 3)
+    K = P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(r_var))
+    np.testing.assert_allclose(out, P - K @ H @ P, atol=1e-6)
+
+
+# ---- models ---------------------------------------------------------------------------------
+def test_simulated_ranges_follow_the_model():
+    sc, _ = _scenario(3, n_agents=6, n_steps=30, r_max=18.0)
+    d = np.linalg.norm(
+        sc.positions()[:, :, None]
+        - np.concatenate(
+            [sc.positions(), np.broadcast_to(sc.anchors, (30, *sc.anchors.shape))], axis=1
+        )[:, None],
+        axis=-1,
+    )
+    assert sc.z.shape == (30, 6, 15)
+    finite = np.isfinite(sc.z)
+    np.testing.assert_array_equal(finite, (d <= 18.0) & (d > 0))
+    resid = (sc.z - d)[finite]
+    assert abs(resid.std() - 0.1) < 0.01 and abs(resid.mean()) < 0.01
+    za = sc.z[:, :, :6]
+    both = np.isfinite(za) & np.isfinite(za.transpose(0, 2, 1))
+    assert both.any() and np.all(za[both] != za.transpose(0, 2, 1)[both])  # z_ij ≠ z_ji
+
+
+def test_distributed_and_centralized_factors():
+    z = np.full((3, 5), np.nan)
+    z[0, 1], z[1, 0], z[2, 0], z[0, 3] = 1.0, 1.1, 2.0, 3.0
+    rx, tx, zz, partners = agent_measurements(z, 0, "distributed")
+    assert list(zip(rx, tx, zz, strict=True)) == [(0, 1, 1.0), (0, 3, 3.0)]
+    assert list(partners) == [1]
+    rx, tx, zz, partners = agent_measurements(z, 0, "centralized")
+    got = sorted(zip(rx, tx, zz, strict=True))
+    assert got == [(0, 1, 1.0), (0, 3, 3.0), (1, 0, 1.1), (2, 0, 2.0)]
+    assert list(partners) == [1, 2]
+    assert all_measurements(z)[2].size == 4
+
+
+@pytest.mark.parametrize(
+    "motion,nd", [("static", 2), ("constant_velocity", 4), ("constant_acceleration", 6)]
+)
+def test_state_models_2d(motion, nd):
+    m = RangeModel(motion, 2)
+    F, Q = m.matrices()
+    assert m.state_dim == nd and F.shape == Q.shape == (nd, nd)
+    assert np.allclose(np.diag(m.regularization_cov())[:2], 0.0)
+
+
+def test_validation_errors():
+    with pytest.raises(ValidationError, match="motion"):
+        RangeModel("jerk")
+    with pytest.raises(ValidationError, match="lambda_ratio"):
+        PFBPOptions(lambda_ratio=0.5)
+    with pytest.raises(ValidationError, match="factors"):
+        SIRBPOptions(factors="both")
+    sc, rng = _scenario(0, n_steps=1)
+    with pytest.raises(ValidationError, match="prior_mean"):
+        run_pfbp(sc, np.zeros((5, 6)), np.zeros((5, 6, 6)), rng)
+
+
+# ---- trackers -------------------------------------------------------------------------------
+def test_pfbp_tracks_at_pcrlb_level():
+    """Scenario I-like (5 agents, 9 anchors, σ = 0.1 m, CA, r_max = ∞, 200 particles, 20 λ)."""
+    K, runs = 10, 3
+    err_pf, err_edh, scs, P0 = [], [], [], None
+    for seed in range(runs):
+        sc, rng = _scenario(100 + seed, n_steps=K)
+        m, P0 = paper_prior(sc, rng)
+        err_pf.append(state_errors(run_pfbp(sc, m, P0, rng), sc)["p"] ** 2)
+        err_edh.append(state_errors(run_edh(sc, m, P0, rng), sc)["p"] ** 2)
+        scs.append(sc)
+    bound = pcrlb(scs, P0).bounds["p"]
+    rmse_pf = np.sqrt(np.mean(err_pf, axis=0))
+    rmse_edh = np.sqrt(np.mean(err_edh, axis=0))
+    assert np.all(rmse_pf[-3:] < 2.0 * bound[-3:]), (rmse_pf, bound)
+    assert np.all(rmse_edh[-3:] < 2.0 * bound[-3:]), (rmse_edh, bound)
+    assert np.all(rmse_pf[-3:] > 0.8 * bound[-3:])  # a bound is a bound
+
+
+def test_sirbp_with_many_particles_reaches_the_bound_static_2d():
+    """Static 2-D network, informative prior: SIR-BP ≈ PF-BP ≈ PCRLB at the first step."""
+    runs = 4
+    e_sir, e_pf, scs = [], [], []
+    for seed in range(runs):
+        sc, rng = _scenario(200 + seed, n_agents=4, n_steps=1, motion="static", dim=2)
+        P0 = np.repeat(np.eye(2)[None] * 0.25, 4, axis=0)
+        m = sc.initial_states + rng.normal(size=(4, 2)) * 0.5
+        sir = run_sirbp(sc, m, P0, rng, SIRBPOptions(n_particles=50_000, uniform_positions=False))
+        e_sir.append(state_errors(sir, sc)["p"] ** 2)
+        e_pf.append(state_errors(run_pfbp(sc, m, P0, rng), sc)["p"] ** 2)
+        scs.append(sc)
+    bound = pcrlb(scs, P0).bounds["p"][0]
+    assert np.sqrt(np.mean(e_sir)) < 2.0 * bound
+    assert np.sqrt(np.mean(e_pf)) < 2.0 * bound
+
+
+def test_reproducible_for_a_seed():
+    out = []
+    for _ in range(2):
+        sc, rng = _scenario(7, n_steps=2)
+        m, P = paper_prior(sc, rng)
+        out.append(run_pfbp(sc, m, P, rng, PFBPOptions(n_particles=50)).mean)
+        out.append(run_sirbp(sc, m, P, rng, SIRBPOptions(n_particles=500)).mean)
+        out.append(run_edh(sc, m, P, rng, PFBPOptions(n_particles=50)).mean)
+    for a, b in zip(out[:3], out[3:], strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_numpy_backend_gives_the_same_track():
+    sc, rng = _scenario(8, n_steps=2)
+    m, P = paper_prior(sc, rng)
+    a = run_pfbp(sc, m, P, np.random.default_rng(1), PFBPOptions(n_particles=40))
+    b = run_pfbp(sc, m, P, np.random.default_rng(1), PFBPOptions(n_particles=40, backend="numpy"))
+    np.testing.assert_allclose(a.mean, b.mean, rtol=1e-7, atol=1e-7)
+
+
+def test_degenerate_geometry_stays_finite():
+    """Coplanar anchors and an agent without any measurement: no NaN/inf anywhere."""
+    rng = np.random.default_rng(11)
+    model = RangeModel("constant_acceleration", 3)
+    K, n_ag = 3, 3
+    states = np.zeros((K, n_ag, 9))
+    states[:, 0, :3] = [5.0, 5.0, 5.0]
+    states[:, 1, :3] = [8.0, 4.0, 6.0]
+    states[:, 2, :3] = [500.0, 500.0, 500.0]  # far from everything
+    anchors = np.array([[0.0, 0, 0], [20, 0, 0], [0, 20, 0], [20, 20, 0]])  # coplanar
+    nodes = np.concatenate([states[0, :, :3], anchors])
+    d = np.linalg.norm(states[0, :, None, :3] - nodes[None], axis=-1)
+    z = np.where((d < 30) & (d > 0), d + 0.1 * rng.normal(size=d.shape), np.nan)
+    sc = RangeScenario(model, anchors, states[0], states, np.repeat(z[None], K, axis=0), 30.0)
+    assert np.all(np.isnan(sc.z[:, 2]))
+    m = states[0] + 1.0
+    P = np.repeat(np.diag(np.r_[np.full(3, 4.0), np.full(6, 0.1)])[None], n_ag, axis=0)
+    F, _ = model.matrices()
+    expected = np.stack([(np.linalg.matrix_power(F, k + 1) @ m[2])[:3] for k in range(K)])
+    sir = SIRBPOptions(n_particles=2000, regularize=True, uniform_positions=False)
+    for r, tol in (
+        (run_pfbp(sc, m, P, rng, PFBPOptions(n_particles=200, regularize=True)), 0.6),
+        (run_edh(sc, m, P, rng, PFBPOptions(n_particles=200)), 2.0),  # joint resampling
+        (run_sirbp(sc, m, P, rng, sir), 0.6),
+    ):
+        assert np.all(np.isfinite(r.mean)) and np.all(np.isfinite(r.cov))
+        # the isolated agent is only predicted (its mean follows F; 5 MC std)
+        np.testing.assert_allclose(r.mean[:, 2, :3], expected, atol=tol)
+        assert np.all(np.abs(r.mean[:, 0, :3] - 5.0) < 0.5)  # the other one is localized
+
+
+def test_scenario_validation():
+    sc, rng = _scenario(1, n_steps=2)
+    net = make_network(scenario_network_spec(2, 2), rng)
+    with pytest.raises(ValidationError, match="n_steps"):
+        simulate_scenario(net, RangeModel(), rng, n_steps=5)
+    with pytest.raises(ValidationError, match="dim"):
+        simulate_scenario(net, RangeModel(dim=2), rng)
+    assert isinstance(sc, RangeScenario)
