@@ -796,22 +796,11 @@ def generate(
 
 
 def _run_dask(tasks, done, *, workers, scheduler) -> None:
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import as_completed
 
-    with contextlib.ExitStack() as stack:
-        if scheduler is None:
-            cluster = stack.enter_context(
-                LocalCluster(
-                    n_workers=int(workers),
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=None,
-                    silence_logs=40,
-                )
-            )
-            client = stack.enter_context(Client(cluster))
-        else:
-            client = stack.enter_context(Client(scheduler))
+    from phyloc.evaluation.runner import dask_client
+
+    with dask_client(workers=workers, scheduler=scheduler) as client:
         tag = uuid.uuid4().hex[:8]
         futures = {
             client.submit(_write_shard, t, key=f"phyloc-shard-{t.index:05d}-{tag}", pure=False): t

@@ -46,6 +46,7 @@ from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
+from phyloc.evaluation._common import experiment_from_dict, scenario_specs
 from phyloc.evaluation.metrics import framework_distance_errors, shape_difference
 from phyloc.evaluation.ranging_experiment import RangingSpec
 from phyloc.evaluation.runner import run_tasks
@@ -147,14 +148,7 @@ class LocalizationExperimentSpec:
     @classmethod
     def from_dict(cls, d: dict, *, fast: bool = False) -> LocalizationExperimentSpec:
         """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        d = dict(d)
-        fast_over = d.pop("fast", {})
-        names = [f.name for f in dataclasses.fields(cls)]
-        check_keys(d, [*names, "fast"], "experiment")
-        check_keys(fast_over, names, "experiment.fast")
-        if fast:
-            d.update(fast_over)
-        return cls(**d)
+        return experiment_from_dict(cls, d, fast=fast)
 
 
 def _priors(init, net, links, corr, lspec, rng):
@@ -296,12 +290,7 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
     net_raw = dict(recipe.section("network"))
     chan = recipe.section("channel", ChannelSpec)
     nets = {n: NetworkSpec.from_dict({**net_raw, "n_agents": n}) for n in exp.agents}
-    specs = {tok: dataclasses.replace(chan, scenario=name) for tok, name in exp.scenarios.items()}
-    for tok, spec in specs.items():
-        try:
-            spec.load()
-        except ValidationError as exc:
-            raise ValidationError(f"experiment.scenarios.{tok}", exc.value, exc.allowed) from None
+    specs = scenario_specs(chan, exp.scenarios)
     payloads, keys = [], []
     for tok, spec in specs.items():
         for n in exp.agents:

@@ -28,7 +28,6 @@ Series: ``distance_bin_centers_m``, ``<m>.<s>.rmse_by_distance_m``, ``crb.<s>.rm
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -39,6 +38,7 @@ from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
+from phyloc.evaluation._common import experiment_from_dict, scenario_specs
 from phyloc.evaluation.runner import run_tasks
 from phyloc.network import NetworkSpec
 from phyloc.phy import C0, OFDMSystem, PathSet
@@ -138,14 +138,7 @@ class RangingExperimentSpec:
     @classmethod
     def from_dict(cls, d: dict, *, fast: bool = False) -> RangingExperimentSpec:
         """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        d = dict(d)
-        fast_over = d.pop("fast", {})
-        names = [f.name for f in dataclasses.fields(cls)]
-        check_keys(d, [*names, "fast"], "experiment")
-        check_keys(fast_over, names, "experiment.fast")
-        if fast:
-            d.update(fast_over)
-        return cls(**d)
+        return experiment_from_dict(cls, d, fast=fast)
 
 
 def _task(payload, seed_seq):
@@ -202,12 +195,7 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
     chan = recipe.section("channel", ChannelSpec)
     for n in exp.agents:  # validate every network before any work starts
         NetworkSpec.from_dict({**net_raw, "n_agents": n})
-    specs = {tok: dataclasses.replace(chan, scenario=name) for tok, name in exp.scenarios.items()}
-    for tok, spec in specs.items():
-        try:
-            spec.load()
-        except ValidationError as exc:
-            raise ValidationError(f"experiment.scenarios.{tok}", exc.value, exc.allowed) from None
+    specs = scenario_specs(chan, exp.scenarios)
 
     payloads, keys = [], []
     for tok, spec in specs.items():

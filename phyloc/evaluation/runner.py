@@ -71,8 +71,11 @@ def run_tasks(
     )
 
 
-def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show):
-    from dask.distributed import Client, LocalCluster, as_completed
+@contextlib.contextmanager
+def dask_client(*, workers=None, scheduler=None):
+    """A Dask client: on an embedded ``LocalCluster`` of ``workers`` single-threaded processes,
+    or connected to ``scheduler`` (an address); closed (and the cluster stopped) on exit."""
+    from dask.distributed import Client, LocalCluster
 
     with contextlib.ExitStack() as stack:
         if scheduler is None:
@@ -85,9 +88,15 @@ def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show):
                     silence_logs=40,
                 )
             )
-            client = stack.enter_context(Client(cluster))
+            yield stack.enter_context(Client(cluster))
         else:
-            client = stack.enter_context(Client(scheduler))
+            yield stack.enter_context(Client(scheduler))
+
+
+def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show):
+    from dask.distributed import as_completed
+
+    with dask_client(workers=workers, scheduler=scheduler) as client:
         futures = client.map(fn, payloads, seeds, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         results = [None] * len(futures)
