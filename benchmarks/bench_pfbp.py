@@ -13,6 +13,8 @@ steps of one run after a warm-up run (JIT compilation). Figures (names are the i
 ``sirbp.s1_rinf.step_s``                  SIR-BP per time step [s] (``sirbp.n_particles`` per agent)
 ``sirbp.s1_rinf.agent_s``                 ... per agent [s]
 ``sirbp_over_pfbp.step_ratio``            SIR-BP time / PF-BP time per step
+``spbp.s1_rinf.step_s``                   sigma-point BP per time step [s]
+``spbp.s1_rinf.agent_s``                  ... per agent [s]
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from phyloc.localization.range_models import (
     simulate_scenario,
 )
 from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.spbp import SPBPOptions, run_spbp
 from phyloc.network import make_network
 from phyloc.reporting import format_table
 
@@ -67,6 +70,17 @@ class TimeStep:
         run_pfbp(self.sc, self.mean, self.cov, np.random.default_rng(0), self.opt)
 
 
+class TimeSPBPStep:
+    """asv: one SP-BP time step on Scenario I."""
+
+    def setup(self):
+        self.sc, self.mean, self.cov = make_scenario(n_steps=1)
+        self.opt = SPBPOptions(n_iterations=N_ITER)
+
+    def time_spbp_step(self):
+        run_spbp(self.sc, self.mean, self.cov, None, self.opt)
+
+
 def report(quick: bool = False) -> dict[str, float]:
     """Measure every figure of the module docstring; ``quick`` shortens the runs."""
     n_steps = 3 if quick else 10
@@ -91,6 +105,9 @@ def report(quick: bool = False) -> dict[str, float]:
     fig["sirbp.s1_rinf.step_s"] = sir_step
     fig["sirbp.s1_rinf.agent_s"] = sir_agent
     fig["sirbp_over_pfbp.step_ratio"] = sir_step / step
+    sp_step, sp_agent = _median_step(run_spbp, sc, mean, cov, SPBPOptions(n_iterations=N_ITER))
+    fig["spbp.s1_rinf.step_s"] = sp_step
+    fig["spbp.s1_rinf.agent_s"] = sp_agent
     return fig
 
 
@@ -100,8 +117,12 @@ def summarize(fig: dict) -> str:
         ("PF-BP (numba flow)", fig["pfbp.s1_rinf.step_s"], fig["pfbp.s1_rinf.agent_s"]),
         ("PF-BP (NumPy flow)", fig["pfbp_numpy.s1_rinf.step_s"], None),
         ("EDH (joint)", fig["edh.s1_rinf.step_s"], None),
-        (f"SIR-BP ({int(fig['sirbp.n_particles'])} particles)", fig["sirbp.s1_rinf.step_s"],
-         fig["sirbp.s1_rinf.agent_s"]),
+        (
+            f"SIR-BP ({int(fig['sirbp.n_particles'])} particles)",
+            fig["sirbp.s1_rinf.step_s"],
+            fig["sirbp.s1_rinf.agent_s"],
+        ),
+        ("SP-BP", fig["spbp.s1_rinf.step_s"], fig["spbp.s1_rinf.agent_s"]),
     ]
     table = format_table(rows, ["Scenario I, r_max = inf", "step [s]", "per agent [s]"])
     return (

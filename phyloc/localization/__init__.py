@@ -34,6 +34,7 @@ from phyloc.localization.range_models import (
     state_errors,
 )
 from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.spbp import SPBPOptions, run_spbp
 
 __all__ = [
     "INFORMED_START_STD_M",
@@ -47,6 +48,7 @@ __all__ = [
     "RangeModel",
     "RangeScenario",
     "SIRBPOptions",
+    "SPBPOptions",
     "classical_mds",
     "coarse_positions",
     "gauge_log_prior",
@@ -61,6 +63,7 @@ __all__ = [
     "run_edh",
     "run_pfbp",
     "run_sirbp",
+    "run_spbp",
     "run_tracking",
     "scenario_network_spec",
     "shortest_path_completion",

@@ -1,0 +1,229 @@
+"""Sigma-point belief propagation (SP-BP), the Gaussian baseline of the PF-BP paper.
+
+After Meyer, Hlinka, Hlawatsch, "Sigma point belief propagation", IEEE Signal Process. Lett.
+21(2), 2014. Every agent ``i`` holds a Gaussian belief ``N(x̂_i, P_i)``. Per time step:
+
+1. predict by the linear motion model (PF-BP eqs. (1), (29)): ``x̂_i ← F x̂_i``,
+   ``P_i ← F P_i Fᵀ + Q``;
+2. for ``u = 1 … U`` message-passing iterations, all beliefs in parallel (the schedule of
+   :func:`~phyloc.localization.pfbp.run_pfbp`, extrinsic information approximated by beliefs):
+   stack the agent's *predicted* state with its neighbours' beliefs of iteration ``u − 1`` into
+   β with mean ``[x̂_i; x̂_j …]`` and block-diagonal covariance ``P̃_i`` (as PF-BP eq. (28));
+   the message product and marginalization are one unscented update of β by the agent's range
+   measurements, of which the agent's block is kept:
+
+   .. math::
+
+       x̂_i ← [β̄ + P_{βz} P_{zz}^{-1} (z − \\bar z)]_i, \\qquad
+       P_i ← [P̃_i − P_{βz} P_{zz}^{-1} P_{βz}ᵀ]_{ii};
+
+3. the estimate is ``x̂_i``.
+
+The sigma points are those of the PF-BP UKF covariance step
+(:func:`~phyloc.localization._flow.ukf_covariance_update`, eq. (30)): ``β̄ ± √n L_j`` with
+``L Lᵀ = P̃_i`` (Cholesky), weights ``1/(2n)``, no centre point (Julier's κ = 0), so the
+covariance update is the Schur complement of a PSD matrix and stays PSD. Measurements follow
+``factors`` as in PF-BP (distributed: eq. (17); centralized: eq. (18)). An agent without
+measurements keeps its prediction. Optional regularization adds ``Σ_r`` (eq. (32)) to every
+updated covariance, as PF-BP §VI does for SP-BP (eq. (33)). SP-BP is deterministic; ``rng``
+is accepted only for the common tracker signature.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import block_diag
+
+from phyloc import _validate as v
+from phyloc.errors import ValidationError
+from phyloc.localization import _flow
+from phyloc.localization.range_models import (
+    FACTORS,
+    RangeScenario,
+    TrackResult,
+    agent_measurements,
+    check_prior,
+    flow_links,
+)
+from phyloc.phy.system import check_keys
+
+
+@dataclass(frozen=True)
+class SPBPOptions:
+    """Options of SP-BP (defaults: the PF-BP §VI schedule).
+
+    Parameters
+    ----------
+    n_iterations : int
+        Message-passing iterations U (2).
+    factors : {"distributed", "centralized"}
+        PF-BP §V-A.
+    regularize : bool
+        Add the kernel ``Σ_r`` of PF-BP eq. (32) to every updated covariance (eq. (33)) (off).
+    reg_std_vel, reg_std_acc : float
+        σ_r,vel [m/s], σ_r,acc [m/s²] of eq. (32) (0.15).
+    """
+
+    n_iterations: int = 2
+    factors: str = "distributed"
+    regularize: bool = False
+    reg_std_vel: float = 0.15
+    reg_std_acc: float = 0.15
+
+    def __post_init__(self):
+        object.__setattr__(
+            self, "n_iterations", v.integer("n_iterations", self.n_iterations, minimum=1)
+        )
+        if self.factors not in FACTORS:
+            raise ValidationError("factors", self.factors, f"must be one of {FACTORS}")
+        for name in ("reg_std_vel", "reg_std_acc"):
+            object.__setattr__(self, name, v.positive(name, getattr(self, name), allow_zero=True))
+
+    @classmethod
+    def from_dict(cls, d: dict, section: str = "localization") -> SPBPOptions:
+        """Build from a recipe table; unknown keys are errors naming the closest valid key."""
+        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        return cls(**d)
+
+
+def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_out):
+    """Unscented update of a stacked Gaussian by range measurements; the leading block.
+
+    Parameters
+    ----------
+    mean : [n] float64
+        Stacked mean β̄.
+    P : [n, n] float64
+        Its covariance ``P̃`` (PSD; jittered when singular).
+    off_a, off_b, anchor_pos : as in :mod:`phyloc.localization._flow`
+        Measurement ``q`` is ``‖β[off_a:off_a+dim] − β[off_b:off_b+dim]‖`` (anchor
+        ``anchor_pos[q]`` when ``off_b[q] < 0``).
+    z : [L] float64
+        Ranges [m].
+    r_var : [L] float64
+        Noise variances σ² [m²].
+    dim : int
+    n_out : int
+        Size of the leading block returned.
+
+    Returns
+    -------
+    mean_out : [n_out] float64
+    cov_out : [n_out, n_out] float64
+        Equal to :func:`~phyloc.localization._flow.ukf_covariance_update` (same sigma points).
+    """
+    n = mean.size
+    L = _flow.robust_cholesky(P) * np.sqrt(n)
+    pts = np.concatenate([mean + L.T, mean - L.T])  # [2n, n]
+    Z = np.empty((2 * n, off_a.size))
+    for q in range(off_a.size):
+        pa = pts[:, off_a[q] : off_a[q] + dim]
+        pb = pts[:, off_b[q] : off_b[q] + dim] if off_b[q] >= 0 else anchor_pos[q]
+        Z[:, q] = np.linalg.norm(pa - pb, axis=1)
+    z_bar = Z.mean(axis=0)
+    dz = Z - z_bar
+    dx = pts[:, :n_out] - mean[:n_out]
+    w = 1.0 / (2 * n)
+    Pzz = w * dz.T @ dz + np.diag(r_var)
+    Pxz = w * dx.T @ dz
+    G = np.linalg.solve(Pzz, Pxz.T).T  # gain, Pzz symmetric
+    m_out = mean[:n_out] + G @ (z - z_bar)
+    c_out = P[:n_out, :n_out] - G @ Pxz.T
+    return m_out, 0.5 * (c_out + c_out.T)
+
+
+def run_spbp(
+    scenario: RangeScenario,
+    prior_mean: np.ndarray,
+    prior_cov: np.ndarray,
+    rng: np.random.Generator | None = None,
+    options: SPBPOptions | None = None,
+) -> TrackResult:
+    """Track all agents of a scenario with sigma-point BP (Meyer et al. 2014).
+
+    Parameters
+    ----------
+    scenario : RangeScenario
+        From :func:`~phyloc.localization.range_models.simulate_scenario`.
+    prior_mean : [n_agents, N_D] float64
+        ``x̂_i^{(0)}`` (e.g. :func:`~phyloc.localization.range_models.paper_prior`, eq. (31)).
+    prior_cov : [n_agents, N_D, N_D] float64
+        ``P_i^{(0)}``.
+    rng : numpy.random.Generator, optional
+        Unused (SP-BP is deterministic); accepted for the signature of
+        :func:`~phyloc.localization.pfbp.run_pfbp`.
+    options : SPBPOptions, optional
+
+    Returns
+    -------
+    TrackResult
+        ``mean [K, n_agents, N_D]``, ``cov [K, n_agents, N_D, N_D]`` (Gaussian beliefs),
+        timings, ``label="spbp"``.
+
+    Examples
+    --------
+    >>> from phyloc.network import make_network
+    >>> from phyloc.localization.range_models import (RangeModel, paper_prior,
+    ...     scenario_network_spec, simulate_scenario)
+    >>> rng = np.random.default_rng(1)
+    >>> net = make_network(scenario_network_spec(n_agents=3, n_steps=2), rng)
+    >>> sc = simulate_scenario(net, RangeModel(), rng)
+    >>> m, P = paper_prior(sc, rng)
+    >>> run_spbp(sc, m, P).mean.shape
+    (2, 3, 9)
+    """
+    opt = SPBPOptions() if options is None else options
+    if not isinstance(opt, SPBPOptions):
+        raise ValidationError("options", type(opt).__name__, "must be SPBPOptions")
+    if rng is not None and not isinstance(rng, np.random.Generator):
+        raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator or None")
+    x, P = check_prior(scenario, prior_mean, prior_cov)
+    model = scenario.model
+    nd, n_ag, K = model.state_dim, scenario.n_agents, scenario.n_steps
+    F, _ = model.matrices()
+    var = model.sigma_r**2
+    Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc) if opt.regularize else None
+    out_mean = np.empty((K, n_ag, nd))
+    out_cov = np.empty((K, n_ag, nd, nd))
+    step_s = np.empty(K)
+    for k in range(K):
+        t0 = time.perf_counter()
+        x_pred = x @ F.T  # eq. (1)
+        P_pred = model.predict_cov(P)  # eq. (29)
+        x_bel, P_bel = x_pred, P_pred
+        for _u in range(opt.n_iterations):  # all agents in parallel
+            new_x = np.empty_like(x_bel)
+            new_P = np.empty_like(P_bel)
+            for i in range(n_ag):
+                new_x[i], new_P[i] = _agent_update(
+                    i, scenario, k, x_pred, P_pred, x_bel, P_bel, opt.factors, var
+                )
+                if Sr is not None:  # eq. (33)
+                    new_P[i] += Sr
+            x_bel, P_bel = new_x, new_P
+        x, P = x_bel, P_bel
+        out_mean[k] = x
+        out_cov[k] = P
+        step_s[k] = time.perf_counter() - t0
+    return TrackResult(out_mean, out_cov, step_s, step_s / n_ag, label="spbp")
+
+
+def _agent_update(i, scenario, k, x_pred, P_pred, x_bel, P_bel, factors, var):
+    """One belief update of agent ``i``: unscented product of its prediction and the messages."""
+    model = scenario.model
+    dim, nd, n_ag = model.dim, model.state_dim, scenario.n_agents
+    rx, tx, zz, partners = agent_measurements(scenario.z[k], i, factors)
+    if zz.size == 0:
+        return x_pred[i], P_pred[i]
+    local = np.full(n_ag, -1, dtype=np.int64)
+    local[i] = 0
+    local[partners] = np.arange(1, partners.size + 1)
+    off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, scenario.anchors, dim, nd)
+    beta = np.concatenate([x_pred[i]] + [x_bel[j] for j in partners])  # β̄
+    P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # as eq. (28)
+    r_var = np.full(zz.size, var)
+    return unscented_range_update(beta, P_t, off_a, off_b, apos, zz, r_var, dim, nd)

@@ -1,0 +1,153 @@
+"""SP-BP (Meyer et al. 2014) against an independent UKF, degenerate geometry, PF-BP, the PCRLB."""
+
+import numpy as np
+import pytest
+from naive_spbp import ca_matrices, ukf_track
+
+from phyloc.analysis.pcrlb import pcrlb
+from phyloc.errors import ValidationError
+from phyloc.localization import _flow
+from phyloc.localization.pfbp import run_pfbp
+from phyloc.localization.range_models import (
+    RangeModel,
+    RangeScenario,
+    paper_prior,
+    scenario_network_spec,
+    simulate_scenario,
+    state_errors,
+)
+from phyloc.localization.spbp import SPBPOptions, run_spbp, unscented_range_update
+from phyloc.network import make_network
+
+
+def _scenario(seed, n_agents=5, n_steps=5, r_max=None):
+    rng = np.random.default_rng(seed)
+    net = make_network(scenario_network_spec(n_agents, n_steps), rng)
+    return simulate_scenario(net, RangeModel(), rng, comm_range_m=r_max), rng
+
+
+def test_naive_ca_model_is_the_package_model():
+    F, Q = ca_matrices(3, 0.1, 0.15)
+    F2, Q2 = RangeModel().matrices()
+    np.testing.assert_allclose(F, F2, atol=1e-15)
+    np.testing.assert_allclose(Q, Q2, atol=1e-15)
+
+
+@pytest.mark.parametrize("r_max,n_iterations", [(None, 1), (None, 2), (18.0, 2)])
+def test_one_agent_with_anchors_is_an_unscented_kalman_filter(r_max, n_iterations):
+    """One agent has no neighbours: every MP iteration is the same UKF update (r_max = 18 m
+    also drops anchors, so some steps have fewer than four ranges)."""
+    sc, rng = _scenario(31, n_agents=1, n_steps=15, r_max=r_max)
+    P0 = np.diag(np.r_[np.full(3, 4.0), np.full(3, 0.25), np.full(3, 0.05)])
+    m0 = sc.initial_states[0] + rng.multivariate_normal(np.zeros(9), P0)
+    got = run_spbp(sc, m0[None], P0[None], options=SPBPOptions(n_iterations=n_iterations))
+    mean, cov = ukf_track(m0, P0, sc.z[:, 0, 1:], sc.anchors, 3, 0.1, 0.15, 0.1)
+    np.testing.assert_allclose(got.mean[:, 0], mean, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(got.cov[:, 0], cov, rtol=1e-7, atol=1e-12)
+    assert state_errors(got, sc)["p"][-1] < 0.5  # and it localizes
+
+
+def test_unscented_update_covariance_is_the_pfbp_ukf_step(rng):
+    """Same sigma points as PF-BP eq. (30): the covariance equals ukf_covariance_update."""
+    n, dim = 27, 3
+    A0 = rng.normal(size=(n, n))
+    P = A0 @ A0.T / n + np.eye(n)
+    mean = rng.normal(size=n) * 5
+    off_a = np.zeros(4, np.int64)
+    off_b = np.array([9, 18, -1, -1], np.int64)
+    anchors = rng.normal(size=(4, dim)) * 10
+    z = rng.uniform(3, 9, 4)
+    r_var = np.full(4, 0.01)
+    m1, P1 = unscented_range_update(mean, P, off_a, off_b, anchors, z, r_var, dim, 9)
+    ref = _flow.ukf_covariance_update(mean, P, off_a, off_b, anchors, r_var, dim, 9)
+    np.testing.assert_allclose(P1, ref, rtol=1e-10, atol=1e-12)
+    assert m1.shape == (9,) and np.all(np.linalg.eigvalsh(P1) > 0)
+
+
+def test_degenerate_geometry_stays_finite():
+    """Coplanar anchors and an agent without any measurement: no NaN/inf; the isolated agent
+    is exactly predicted (mean Fᵏ m, covariance Fᵏ P Fᵏᵀ + …)."""
+    rng = np.random.default_rng(11)
+    model = RangeModel("constant_acceleration", 3)
+    K, n_ag = 4, 3
+    states = np.zeros((K, n_ag, 9))
+    states[:, 0, :3] = [5.0, 5.0, 5.0]
+    states[:, 1, :3] = [8.0, 4.0, 6.0]
+    states[:, 2, :3] = [500.0, 500.0, 500.0]  # far from everything
+    anchors = np.array([[0.0, 0, 0], [20, 0, 0], [0, 20, 0], [20, 20, 0]])  # coplanar
+    nodes = np.concatenate([states[0, :, :3], anchors])
+    d = np.linalg.norm(states[0, :, None, :3] - nodes[None], axis=-1)
+    z = np.where((d < 30) & (d > 0), d + 0.1 * rng.normal(size=d.shape), np.nan)
+    sc = RangeScenario(model, anchors, states[0], states, np.repeat(z[None], K, axis=0), 30.0)
+    assert np.all(np.isnan(sc.z[:, 2]))
+    m = states[0] + 1.0
+    P = np.repeat(np.diag(np.r_[np.full(3, 4.0), np.full(6, 0.1)])[None], n_ag, axis=0)
+    F, _ = model.matrices()
+    for opt in (SPBPOptions(), SPBPOptions(regularize=True), SPBPOptions(factors="centralized")):
+        r = run_spbp(sc, m, P, options=opt)
+        assert np.all(np.isfinite(r.mean)) and np.all(np.isfinite(r.cov))
+        assert np.all(np.linalg.eigvalsh(r.cov) > -1e-9)
+        expected = np.stack([np.linalg.matrix_power(F, k + 1) @ m[2] for k in range(K)])
+        np.testing.assert_allclose(r.mean[:, 2], expected, rtol=1e-12, atol=1e-12)
+        assert np.all(np.abs(r.mean[-1, 0, :3] - 5.0) < 0.5)  # the other one is localized
+    # an agent exactly on an anchor (zero range): still finite
+    states2 = states.copy()
+    states2[:, 0, :3] = anchors[1]
+    z2 = z.copy()
+    z2[0, 4] = 0.0
+    sc2 = RangeScenario(model, anchors, states2[0], states2, np.repeat(z2[None], K, axis=0), 30.0)
+    r = run_spbp(sc2, m, P)
+    assert np.all(np.isfinite(r.mean)) and np.all(np.isfinite(r.cov))
+
+
+def test_reproducible_and_independent_of_rng():
+    out = []
+    for rng_arg in (None, np.random.default_rng(5), np.random.default_rng(6)):
+        sc, rng = _scenario(7, n_steps=3)
+        m, P = paper_prior(sc, rng)
+        out.append(run_spbp(sc, m, P, rng_arg))
+    for r in out[1:]:
+        np.testing.assert_array_equal(r.mean, out[0].mean)
+        np.testing.assert_array_equal(r.cov, out[0].cov)
+    assert out[0].label == "spbp" and out[0].step_s.shape == (3,)
+
+
+def test_validation_errors():
+    sc, rng = _scenario(0, n_steps=1)
+    m, P = paper_prior(sc, rng)
+    with pytest.raises(ValidationError, match="factors"):
+        SPBPOptions(factors="both")
+    with pytest.raises(ValidationError, match="n_iterations"):
+        SPBPOptions(n_iterations=0)
+    with pytest.raises(ValidationError, match="options"):
+        run_spbp(sc, m, P, rng, options={"n_iterations": 2})
+    with pytest.raises(ValidationError, match="rng"):
+        run_spbp(sc, m, P, 3)
+    with pytest.raises(ValidationError, match="prior_mean"):
+        run_spbp(sc, np.zeros((5, 6)), P)
+    with pytest.raises(ValidationError):
+        SPBPOptions.from_dict({"n_iteration": 2})
+
+
+def test_spbp_tracks_and_pfbp_is_more_accurate_at_k10():
+    """Scenario I-like (5 agents, 9 anchors, CA, r_max = ∞, prior σ_p = 20 m), K = 10, 3 runs.
+
+    SP-BP converges slowly from the wide prior (PF-BP §VI): measured RMSE_p(k = 10) ≈ 2.7 m
+    for SP-BP, ≈ 0.08 m for PF-BP, PCRLB ≈ 0.058 m.
+    """
+    K, runs = 10, 3
+    e_sp, e_pf, scs, P0 = [], [], [], None
+    for seed in range(runs):
+        sc, rng = _scenario(100 + seed, n_steps=K)
+        m, P0 = paper_prior(sc, rng)
+        e_sp.append(state_errors(run_spbp(sc, m, P0), sc)["p"] ** 2)
+        e_pf.append(state_errors(run_pfbp(sc, m, P0, rng), sc)["p"] ** 2)
+        scs.append(sc)
+    bound = pcrlb(scs, P0).bounds["p"]
+    rmse_sp = np.sqrt(np.mean(e_sp, axis=0))
+    rmse_pf = np.sqrt(np.mean(e_pf, axis=0))
+    assert np.all(np.isfinite(rmse_sp))
+    assert np.all(rmse_sp > 0.8 * bound)  # a bound is a bound
+    assert np.all(rmse_sp[4:] < 100.0 * bound[4:]), (rmse_sp, bound)  # it does track
+    assert rmse_sp[-1] < 0.2 * rmse_sp[0]
+    assert rmse_pf[-1] < 0.5 * rmse_sp[-1], (rmse_pf, rmse_sp)  # PF-BP more accurate at k = 10
