@@ -261,8 +261,13 @@ def test_mixture_kernel_matches_numpy_twin(rng):
     pk_c = rng.uniform(0.1, 1e3, n_pk)
     s2 = np.array([0.0, 4.0, 100.0, 0.5])
     out = np.empty((n_agents, Q))
-    mixture_loglik_kernel(X, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, 2.0, 0.7, centers, out)
-    ref = mixture_loglik_numpy(X, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, 2.0, 0.7, centers)
+    floor = np.array([0.0, 3.0, 0.0, 50.0])
+    mixture_loglik_kernel(
+        X, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, 2.0, 0.7, centers, out
+    )
+    ref = mixture_loglik_numpy(
+        X, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, 2.0, 0.7, centers
+    )
     np.testing.assert_allclose(out, ref, rtol=1e-10)
     assert np.all(out >= 0)  # the floor: exp(ℓ) >= 1
 
@@ -273,7 +278,7 @@ def test_marginal_likelihood_is_the_convolution_of_the_exact_one(rng):
 
     pos, is_anchor, links = single_agent_setup()
     tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=25.0).select([0])
-    lik = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1)
+    lik = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1, outlier_nats=np.inf)
     d_true = np.linalg.norm(pos[0] - pos[1])
     inv_scale = 1.0 / (tab.noise_var[0] * tab.symbol_energy[0])
     direction = (pos[0] - pos[1]) / d_true

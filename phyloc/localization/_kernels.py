@@ -125,15 +125,17 @@ def systematic_resample_numpy(weights, u0, n):
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, parallel=True)
 def mixture_loglik_kernel(
-    particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, ways, gamma, centers, out
+    particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, floor, ways, gamma, centers, out
 ):
-    """``out[a, q] = γ Σ_j log(1 + Σ_i w_ij N(ways·‖x − c_j‖; d_ij, 1/c_ij + s²_j))`` (scaled).
+    """``out[a, q] = γ Σ_j log(e^{floor_j} + Σ_i w_ij N(ways·‖x − c_j‖; d_ij, 1/c_ij + s²_j))``.
 
     The one-path likelihood ``exp(ℓ(d))`` of each link is represented by the Laplace
     approximations of its peaks (distance ``d_i``, log height ``h_i``, curvature ``c_i`` of
-    ``ℓ``) plus the floor 1, and convolved with the neighbour's projected uncertainty
+    ``ℓ``) plus a floor, and convolved with the neighbour's projected uncertainty
     ``N(0, s²)`` along the distance axis (exact for each Gaussian component):
-    ``log(1 + Σ_i exp(h_i − ½log(1 + c_i s²) − (x − d_i)²/(2(1/c_i + s²))))``.
+    ``log(e^{floor} + Σ_i exp(h_i − ½log(1 + c_i s²) − (x − d_i)²/(2(1/c_i + s²))))``.
+    ``floor_j = 0`` is the exact floor (``ℓ >= 0``); a higher floor bounds the evidence a
+    single link can contribute (robustness to NLOS peaks).
     """
     n_agents, Q, dim = particles.shape
     max_p = 1
@@ -158,13 +160,14 @@ def mixture_loglik_kernel(
                     t = particles[a, q, k] - c[k]
                     acc += t * t
                 x = ways * np.sqrt(acc)
-                best = 0.0  # the floor: exp(ℓ) >= 1 since ℓ = |f|²/(σ²‖S‖²) >= 0
+                fl = floor[j]
+                best = fl
                 for i in range(n_p):
                     t = x - pk_d[p0 + i]
                     e = base[i] - half_prec[i] * t * t
                     if e > best:
                         best = e
-                tot = np.exp(-best)
+                tot = np.exp(fl - best)
                 for i in range(n_p):
                     t = x - pk_d[p0 + i]
                     tot += np.exp(base[i] - half_prec[i] * t * t - best)
@@ -172,7 +175,7 @@ def mixture_loglik_kernel(
 
 
 def mixture_loglik_numpy(
-    particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, ways, gamma, centers
+    particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, floor, ways, gamma, centers
 ):
     """Plain-NumPy twin of :func:`mixture_loglik_kernel`."""
     n_agents, Q, _ = particles.shape
@@ -185,7 +188,7 @@ def mixture_loglik_numpy(
             terms = (pk_h[sl] - 0.5 * np.log1p(pk_c[sl] * s2[j]))[None, :] - 0.5 * (
                 x[:, None] - pk_d[sl][None, :]
             ) ** 2 / v[None, :]
-            terms = np.concatenate([np.zeros((Q, 1)), terms], axis=1)
+            terms = np.concatenate([np.full((Q, 1), floor[j]), terms], axis=1)
             m = terms.max(axis=1)
             out[a] += gamma * (m + np.log(np.exp(terms - m[:, None]).sum(axis=1)))
     return out
