@@ -363,3 +363,23 @@ def test_tracking_follows_a_moving_agent():
     err = np.array([np.linalg.norm(r.means[0] - path[t]) for t, r in enumerate(res)])
     assert np.all(err < 0.3)  # every snapshot, although the agent moves ~1.4 m per step
     assert all(np.all(np.isfinite(r.log_weights[np.isfinite(r.log_weights)])) for r in res)
+
+
+def test_outlier_floor_bounds_the_evidence_of_one_link(rng):
+    """With outlier_nats = Δ a single link moves log-weights by at most γΔ (NLOS robustness)."""
+    from phyloc.localization.likelihoods import MarginalDirectLikelihood
+
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=40.0).select([0])
+    covs = np.zeros((5, 2, 2))
+    covs[1] = 100.0 * np.eye(2)  # a neighbour known to 10 m: the smoothed peak is wide
+    X = pos[1] + rng.uniform(-150, 150, (1, 4000, 2))
+    for delta in (5.0, 10.0):
+        lik = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1, outlier_nats=delta)
+        ll = lik.loglik(X, pos, covs, gamma=0.5)
+        # range = Δ + log(1 + e^{−Δ} + other peaks at the maximum), tiny for a one-path link
+        assert ll.max() - ll.min() <= 0.5 * (delta + 0.05)
+        assert ll.max() - ll.min() >= 0.5 * delta * 0.9  # and it is reached far from the peak
+    plain = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1, outlier_nats=np.inf)
+    ll = plain.loglik(X, pos, covs)
+    assert ll.max() - ll.min() > 100.0  # unclipped: a Gaussian-like pull over the whole area
