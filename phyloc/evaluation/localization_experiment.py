@@ -307,7 +307,13 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         progress=progress,
     )
     figures, series = _aggregate(keys, results, exp, list(specs))
-    meta = {
+    meta = _meta(recipe, exp, lspec, fast)
+    return {"figures": figures, "series": series, "meta": meta}
+
+
+def _meta(recipe, exp, lspec, fast) -> dict:
+    """The ``meta`` object of a localization result (labels of every oracle/informed output)."""
+    return {
         "recipe": recipe.name,
         "kind": recipe.kind,
         "seed": recipe.seed,
@@ -326,7 +332,6 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         "n_particles": lspec.dpf.n_particles,
         "n_iterations": lspec.dpf.n_iterations,
     }
-    return {"figures": figures, "series": series, "meta": meta}
 
 
 def _aggregate(keys, results, exp, tokens):
@@ -422,24 +427,7 @@ def run_dataset(path, *, fast: bool = False, workers=None, scheduler=None, progr
         progress=progress,
     )
     figures, series = _aggregate(keys, results, exp, [token])
-    meta = {
-        "recipe": recipe.name,
-        "kind": "localization",
-        "dataset": str(path),
-        "seed": recipe.seed,
-        "fast": fast,
-        "agents": list(exp.agents),
-        "realizations": exp.realizations,
-        "scenarios": dict(exp.scenarios),
-        "methods": list(exp.methods),
-        "inits": {i: i.replace("_", "-") for i in exp.inits},
-        "labels": {
-            "informed": "informed start (truth + N(0, σ0²))",
-            "sage_los": "oracle: NLOS links rejected by ground truth",
-        },
-        "n_particles": lspec.dpf.n_particles,
-        "n_iterations": lspec.dpf.n_iterations,
-    }
+    meta = {**_meta(recipe, exp, lspec, fast), "kind": "localization", "dataset": str(path)}
     return {"figures": figures, "series": series, "meta": meta}
 
 
