@@ -17,7 +17,6 @@ import time
 import numpy as np
 from scipy.linalg import block_diag
 
-from phyloc.errors import ValidationError
 from phyloc.localization import _flow
 from phyloc.localization.pfbp import (
     PFBPOptions,
@@ -31,6 +30,7 @@ from phyloc.localization.range_models import (
     TrackResult,
     all_measurements,
     check_prior,
+    check_run_args,
     flow_links,
     sample_gaussian,
 )
@@ -62,11 +62,7 @@ def run_edh(
         Per-agent blocks of the joint mean and covariance; ``agent_s`` is NaN (the EDH filter
         has no distributed form).
     """
-    opt = PFBPOptions() if options is None else options
-    if not isinstance(opt, PFBPOptions):
-        raise ValidationError("options", type(opt).__name__, "must be PFBPOptions")
-    if not isinstance(rng, np.random.Generator):
-        raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator")
+    opt = check_run_args(options, PFBPOptions, rng)
     mean0, cov0 = check_prior(scenario, prior_mean, prior_cov)
     model = scenario.model
     dim, nd, n_ag, M, K = (

@@ -44,6 +44,7 @@ from phyloc.localization.range_models import (
     TrackResult,
     agent_measurements,
     check_prior,
+    check_run_args,
     flow_links,
     sample_gaussian,
 )
@@ -196,11 +197,7 @@ def run_pfbp(
     >>> run_pfbp(sc, m, P, rng, PFBPOptions(n_particles=50)).mean.shape
     (2, 3, 9)
     """
-    opt = PFBPOptions() if options is None else options
-    if not isinstance(opt, PFBPOptions):
-        raise ValidationError("options", type(opt).__name__, "must be PFBPOptions")
-    if not isinstance(rng, np.random.Generator):
-        raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator")
+    opt = check_run_args(options, PFBPOptions, rng)
     mean0, cov0 = check_prior(scenario, prior_mean, prior_cov)
     model = scenario.model
     _dim, nd, n_ag, M, K = (

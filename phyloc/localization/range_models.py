@@ -472,3 +472,13 @@ def check_prior(scenario: RangeScenario, prior_mean, prior_cov):
             "prior_cov", f"array of shape {cov.shape}", f"must be ({n}, {nd}, {nd})"
         )
     return mean.copy(), cov.copy()
+
+
+def check_run_args(options, options_cls, rng, *, rng_required: bool = True):
+    """Validate the common arguments of the range-level trackers; returns the options."""
+    opt = options_cls() if options is None else options
+    if not isinstance(opt, options_cls):
+        raise ValidationError("options", type(opt).__name__, f"must be {options_cls.__name__}")
+    if (rng_required or rng is not None) and not isinstance(rng, np.random.Generator):
+        raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator")
+    return opt

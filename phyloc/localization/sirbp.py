@@ -32,6 +32,7 @@ from phyloc.localization.range_models import (
     TrackResult,
     agent_measurements,
     check_prior,
+    check_run_args,
     sample_gaussian,
 )
 from phyloc.phy.system import check_keys
@@ -101,11 +102,7 @@ def run_sirbp(
     -------
     TrackResult
     """
-    opt = SIRBPOptions() if options is None else options
-    if not isinstance(opt, SIRBPOptions):
-        raise ValidationError("options", type(opt).__name__, "must be SIRBPOptions")
-    if not isinstance(rng, np.random.Generator):
-        raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator")
+    opt = check_run_args(options, SIRBPOptions, rng)
     mean0, cov0 = check_prior(scenario, prior_mean, prior_cov)
     model = scenario.model
     dim, nd, n_ag, M, K = (

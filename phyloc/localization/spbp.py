@@ -47,6 +47,7 @@ from phyloc.localization.range_models import (
     TrackResult,
     agent_measurements,
     check_prior,
+    check_run_args,
     flow_links,
 )
 from phyloc.phy.system import check_keys
@@ -176,11 +177,7 @@ def run_spbp(
     >>> run_spbp(sc, m, P).mean.shape
     (2, 3, 9)
     """
-    opt = SPBPOptions() if options is None else options
-    if not isinstance(opt, SPBPOptions):
-        raise ValidationError("options", type(opt).__name__, "must be SPBPOptions")
-    if rng is not None and not isinstance(rng, np.random.Generator):
-        raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator or None")
+    opt = check_run_args(options, SPBPOptions, rng, rng_required=False)
     x, P = check_prior(scenario, prior_mean, prior_cov)
     model = scenario.model
     nd, n_ag, K = model.state_dim, scenario.n_agents, scenario.n_steps
