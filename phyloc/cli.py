@@ -254,6 +254,7 @@ def _generic_table(fig: dict) -> str:
 EXPERIMENTS = {
     "ranging": "phyloc.evaluation.ranging_experiment",
     "localization": "phyloc.evaluation.localization_experiment",
+    "tracking": "phyloc.evaluation.tracking_experiment",
 }
 
 

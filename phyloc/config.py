@@ -25,7 +25,7 @@ from pathlib import Path
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.phy.system import OFDMSystem, check_keys
 
-KINDS = ("ranging", "localization", "dataset")
+KINDS = ("ranging", "localization", "dataset", "tracking")
 TOP_LEVEL = ("kind", "name", "seed", "description")
 SECTIONS = ("system", "network", "channel", "ranging", "experiment", "localization", "dataset")
 

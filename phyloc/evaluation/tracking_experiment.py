@@ -1,0 +1,615 @@
+"""Range-level cooperative tracking: PF-BP against SIR-BP, SP-BP, EDH and the PCRLB (PF-BP §VI).
+
+A recipe of ``kind = "tracking"`` runs, for every scenario token of ``experiment.scenarios``
+(``{token = {n_agents = N, comm_range_m = r_max}}``; ``comm_range_m`` omitted or ``inf``: fully
+connected) and every Monte Carlo run (one task each): a network of PF-BP §VI
+(:func:`~phyloc.localization.range_models.scenario_network_spec`: agents uniform in a
+``side_m`` cube, 9 anchors at its corners and centre in 3-D (5 in 2-D), initial velocity a unit
+vector toward the centre, CA/CV motion with ``dt_s``, ``accel_std``), range measurements, the
+prior of eq. (31) (:func:`~phyloc.localization.range_models.paper_prior`, ``sigma_p``) and every
+method of ``experiment.methods`` on the *same* measurements from the *same* prior mean:
+
+``pfbp``      PF-BP, Algorithm 1 (:func:`~phyloc.localization.pfbp.run_pfbp`)
+``pfbp_reg``  PF-BP with the regularization of eqs. (32), (33) ("reg" in the paper)
+``sirbp``     bootstrap-particle BP, §V-B (:func:`~phyloc.localization.sirbp.run_sirbp`)
+``spbp``      sigma-point BP (:func:`~phyloc.localization.spbp.run_spbp`)
+``edh``       centralized EDH particle-flow filter, App. B
+              (:func:`~phyloc.localization.edh.run_edh`)
+
+Method options are ``[localization.<method>]`` tables (keys of :class:`PFBPOptions`,
+:class:`SIRBPOptions`, :class:`SPBPOptions`; ``pfbp_reg`` defaults to ``regularize = true``);
+``experiment.method_options`` (usually in ``[experiment.fast]``) overrides single keys, e.g.
+SIR-BP's particle count in the CI setting. The PCRLB (:mod:`phyloc.analysis.pcrlb`) is the
+Tichavský recursion with the range information averaged over the true trajectories of all runs.
+
+Measurements (``experiment.measurements``)
+    ``"gaussian"``  the paper's model (eq. (8)): ``z = ‖p_i − p_j‖ + N(0, σ²)``, ``σ = sigma_r``,
+                    for every pair within ``comm_range_m``
+                    (:func:`~phyloc.localization.range_models.simulate_scenario`).
+    ``"sage"``      ranges estimated from simulated waveforms: per realization
+                    :func:`~phyloc.datasets.simulate.simulate_realization` draws the network
+                    (the same spec; ``[system]``, ``[channel]`` — e.g. WINNER II C2), channels
+                    and received signals of every snapshot; at every time step SAGE
+                    (``[ranging]``, ``[ranging.sage]``) estimates the range of each link an
+                    agent receives; invalid links are NaN (no measurement). The trackers use one
+                    σ per realization: ``sage_sigma_m`` or, when omitted, the root of the median
+                    estimator variance over the valid links. The PCRLB is that of the Gaussian
+                    model at ``sigma_r`` on the valid links (it knows no NLOS bias).
+
+Figures (``results.json``; ``<m>`` a method, ``<s>`` a scenario token, ``<k>`` a time step of
+``experiment.report_steps`` (≤ ``n_steps``), ``<ko>`` one of ``experiment.outage_steps``,
+``<x>`` a threshold of ``experiment.outage_thresholds_m`` written with ``p`` for the decimal
+point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)
+    ``<m>.<s>.k<k>.rmse_p_m``        position RMSE at step k over runs and agents [m] (Fig. 4, 7)
+    ``<m>.<s>.k<k>.rmse_v_m_s``      velocity RMSE [m/s]
+    ``<m>.<s>.k<k>.rmse_a_m_s2``     acceleration RMSE [m/s²] (CA only)
+    ``<m>.<s>.k<k>.rmse_over_pcrlb`` ``rmse_p_m`` over ``pcrlb.<s>.k<k>.p_m``
+    ``pcrlb.<s>.k<k>.p_m`` / ``v_m_s`` / ``a_m_s2``   PCRLB on the position/velocity/acceleration
+                                     RMSE
+    ``<m>.<s>.k<ko>.outage_<x>m``    fraction of (run, agent) position errors > x at step ko
+                                     (Fig. 6)
+    ``<m>.<s>.rmse_p_all_m``         position RMSE over the whole trajectory
+    ``<m>.<s>.step_s``               wall time per time step, joint processing [s] (Tables I, II):
+                                     median over all steps of all runs
+    ``<m>.<s>.agent_s``              ... per agent, distributed processing [s] (not for ``edh``,
+                                     which has no distributed form)
+    ``sirbp_over_pfbp.<s>.step_ratio``   ``sirbp.<s>.step_s / pfbp.<s>.step_s``
+    ``sage.<s>.range_rmse_m``, ``sage.<s>.valid_fraction``, ``sage.<s>.sigma_m``   (``"sage"``
+                                     only) SAGE range RMSE over valid links, fraction of valid
+                                     links, mean σ given to the trackers
+Series: ``k`` (1 … K); ``<m>.<s>.rmse_p_m`` / ``rmse_v_m_s`` / ``rmse_a_m_s2`` and
+``pcrlb.<s>.p_m`` / ``v_m_s`` / ``a_m_s2`` per step; ``outage_threshold_m`` (log grid) with
+``<m>.<s>.k<ko>.outage`` (outage probability versus threshold, Fig. 6) and
+``<m>.<s>.error_cf`` (cumulative frequency of the position error over the whole trajectory,
+Fig. 4a, = 1 − outage over all steps).
+
+Timings are wall times of this process; with several workers on a shared machine they include
+contention. Everything except the timings is identical for a seed whatever the worker count.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from phyloc import _validate as v
+from phyloc.analysis.pcrlb import pcrlb
+from phyloc.config import Recipe
+from phyloc.errors import ValidationError
+from phyloc.evaluation._common import experiment_from_dict
+from phyloc.evaluation.runner import run_tasks
+from phyloc.localization.edh import run_edh
+from phyloc.localization.pfbp import PFBPOptions, run_pfbp
+from phyloc.localization.range_models import (
+    STATE_MODELS,
+    RangeModel,
+    RangeScenario,
+    network_states,
+    paper_prior,
+    scenario_network_spec,
+    simulate_scenario,
+)
+from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.spbp import SPBPOptions, run_spbp
+from phyloc.phy.system import check_keys
+
+METHODS = ("pfbp", "pfbp_reg", "sirbp", "spbp", "edh")
+MEASUREMENTS = ("gaussian", "sage")
+_OPTIONS = {
+    "pfbp": PFBPOptions,
+    "pfbp_reg": PFBPOptions,
+    "sirbp": SIRBPOptions,
+    "spbp": SPBPOptions,
+    "edh": PFBPOptions,
+}
+_RUN = {
+    "pfbp": run_pfbp,
+    "pfbp_reg": run_pfbp,
+    "sirbp": run_sirbp,
+    "spbp": run_spbp,
+    "edh": run_edh,
+}
+_UNITS = {"p": "p_m", "v": "v_m_s", "a": "a_m_s2"}
+OUTAGE_GRID_M = np.logspace(-2, 1.5, 141)
+_TIMING_SUFFIXES = (".step_s", ".agent_s", ".step_ratio")
+
+
+def _threshold_name(x: float) -> str:
+    return f"{x:g}".replace(".", "p") + "m"
+
+
+@dataclass(frozen=True)
+class TrackingExperimentSpec:
+    """``[experiment]`` of a tracking recipe (``[experiment.fast]`` overrides for ``--fast``).
+
+    Parameters
+    ----------
+    scenarios : dict
+        ``{token: {"n_agents": int, "comm_range_m": float}}``; r_max omitted or ``inf``: fully
+        connected.
+    runs : int
+        Monte Carlo runs (tasks) per scenario (PF-BP §VI: 200).
+    n_steps : int
+        K (40).
+    methods : tuple of str
+        From :data:`METHODS`.
+    motion, dim, side_m, dt_s, accel_std, sigma_r
+        State model, dimension, cube side [m], ΔT [s], σ_a [m/s²], range σ [m] (PF-BP §VI:
+        CA, 3, 20, 0.1, 0.15, 0.1).
+    sigma_p, accel_init_factor
+        Prior of eq. (31): σ_p [m] (20) and σ_ainit / σ_a (10).
+    report_steps, outage_steps : tuple of int
+        Steps k with scalar RMSE figures / outage curves (those > ``n_steps`` are skipped).
+    outage_thresholds_m : tuple of float
+        Thresholds of the scalar outage figures [m].
+    measurements : {"gaussian", "sage"}
+        See the module docstring.
+    sage_sigma_m : float, optional
+        σ given to the trackers with ``"sage"`` measurements (default: from the estimator).
+    method_options : dict
+        ``{method: {key: value}}`` overriding ``[localization.<method>]`` keys.
+    """
+
+    scenarios: dict = field(
+        default_factory=lambda: {
+            "s1_r18": {"n_agents": 5, "comm_range_m": 18.0},
+            "s1_rinf": {"n_agents": 5},
+        }
+    )
+    runs: int = 200
+    n_steps: int = 40
+    methods: tuple = METHODS
+    motion: str = "constant_acceleration"
+    dim: int = 3
+    side_m: float = 20.0
+    dt_s: float = 0.1
+    accel_std: float = 0.15
+    sigma_r: float = 0.1
+    sigma_p: float = 20.0
+    accel_init_factor: float = 10.0
+    report_steps: tuple = (1, 10, 20, 40)
+    outage_steps: tuple = (1, 20, 40)
+    outage_thresholds_m: tuple = (0.1, 0.3, 1.0)
+    measurements: str = "gaussian"
+    sage_sigma_m: float | None = None
+    method_options: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not isinstance(self.scenarios, dict) or not self.scenarios:
+            raise ValidationError(
+                "experiment.scenarios", self.scenarios, "a table token = {n_agents, comm_range_m}"
+            )
+        scen = {}
+        for tok, s in self.scenarios.items():
+            name = f"experiment.scenarios.{tok}"
+            if not isinstance(s, dict):
+                raise ValidationError(name, s, "a table {n_agents = N, comm_range_m = r_max}")
+            check_keys(s, ["n_agents", "comm_range_m"], name)
+            if "n_agents" not in s:
+                raise ValidationError(name + ".n_agents", "missing", "an integer >= 1")
+            n = v.integer(name + ".n_agents", s["n_agents"], minimum=1)
+            r = float(s.get("comm_range_m", math.inf))
+            if not r > 0 or math.isnan(r):
+                raise ValidationError(name + ".comm_range_m", r, "> 0 [m] (inf: fully connected)")
+            scen[tok] = {"n_agents": n, "comm_range_m": r}
+        object.__setattr__(self, "scenarios", scen)
+        v.integer("experiment.runs", self.runs, minimum=1)
+        K = v.integer("experiment.n_steps", self.n_steps, minimum=1)
+        methods = tuple(self.methods)
+        if not methods:
+            raise ValidationError("experiment.methods", [], f"at least one of {METHODS}")
+        for m in methods:
+            if m not in METHODS:
+                raise ValidationError("experiment.methods", m, f"each one of {', '.join(METHODS)}")
+        object.__setattr__(self, "methods", methods)
+        if self.motion not in STATE_MODELS:
+            raise ValidationError("experiment.motion", self.motion, f"one of {STATE_MODELS}")
+        if self.dim not in (2, 3):
+            raise ValidationError("experiment.dim", self.dim, "2 or 3")
+        for name in ("side_m", "dt_s", "sigma_r", "sigma_p"):
+            v.positive(f"experiment.{name}", getattr(self, name))
+        v.positive("experiment.accel_std", self.accel_std, allow_zero=True)
+        v.positive("experiment.accel_init_factor", self.accel_init_factor, allow_zero=True)
+        for name in ("report_steps", "outage_steps"):
+            steps = tuple(
+                v.integer(f"experiment.{name}", k, minimum=1) for k in getattr(self, name)
+            )
+            object.__setattr__(self, name, tuple(k for k in steps if k <= K))
+        thr = tuple(
+            v.positive("experiment.outage_thresholds_m", x) for x in self.outage_thresholds_m
+        )
+        object.__setattr__(self, "outage_thresholds_m", thr)
+        if self.measurements not in MEASUREMENTS:
+            raise ValidationError(
+                "experiment.measurements", self.measurements, f"one of {MEASUREMENTS}"
+            )
+        if self.sage_sigma_m is not None:
+            v.positive("experiment.sage_sigma_m", self.sage_sigma_m)
+        if not isinstance(self.method_options, dict):
+            raise ValidationError(
+                "experiment.method_options", self.method_options, "a table {method = {key = value}}"
+            )
+        for m in self.method_options:
+            if m not in METHODS:
+                raise ValidationError(
+                    "experiment.method_options", m, f"keys from {', '.join(METHODS)}"
+                )
+
+    @classmethod
+    def from_dict(cls, d: dict, *, fast: bool = False) -> TrackingExperimentSpec:
+        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
+        return experiment_from_dict(cls, d, fast=fast)
+
+    def model(self) -> RangeModel:
+        """The :class:`RangeModel` of the recipe."""
+        return RangeModel(self.motion, self.dim, self.dt_s, self.accel_std, self.sigma_r)
+
+
+def method_options(localization: dict, exp: TrackingExperimentSpec) -> dict:
+    """Options object of every method: ``[localization.<m>]`` updated by
+    ``experiment.method_options``; unknown keys are errors naming ``localization.<m>.<key>``."""
+    localization = dict(localization)
+    check_keys(localization, list(METHODS), "localization")
+    out = {}
+    for m in exp.methods:
+        raw = localization.get(m, {})
+        if not isinstance(raw, dict):
+            raise ValidationError(f"localization.{m}", raw, "a table of method options")
+        over = exp.method_options.get(m, {})
+        base = {"regularize": True} if m == "pfbp_reg" else {}
+        try:
+            out[m] = _OPTIONS[m].from_dict({**base, **raw}, section=f"localization.{m}")
+            out[m] = _OPTIONS[m].from_dict(
+                {**base, **raw, **over}, section=f"experiment.method_options.{m}"
+            )
+        except ValidationError as exc:
+            if exc.field.startswith(("localization", "experiment")):
+                raise
+            raise ValidationError(f"localization.{m}.{exc.field}", exc.value, exc.allowed) from None
+    return out
+
+
+def _network_spec(exp: TrackingExperimentSpec, scen: dict):
+    spec = scenario_network_spec(
+        scen["n_agents"],
+        exp.n_steps,
+        motion=exp.motion,
+        dim=exp.dim,
+        side_m=exp.side_m,
+        dt_s=exp.dt_s,
+        accel_std=exp.accel_std,
+    )
+    if math.isfinite(scen["comm_range_m"]):
+        spec = dataclasses.replace(spec, comm_range_m=scen["comm_range_m"])
+    return spec
+
+
+def _gaussian_scenario(exp, scen, rng):
+    from phyloc.network import make_network
+
+    net = make_network(_network_spec(exp, scen), rng)
+    r = scen["comm_range_m"]
+    return simulate_scenario(
+        net, exp.model(), rng, comm_range_m=r if math.isfinite(r) else None
+    ), None
+
+
+def _sage_scenario(exp, scen, system, chan, rspec, rng):
+    """Range measurements of SAGE on simulated waveforms (``measurements = "sage"``)."""
+    from phyloc.datasets.simulate import simulate_realization
+    from phyloc.phy.correlation import correlation_tables
+    from phyloc.ranging import estimate
+
+    model = exp.model()
+    real = simulate_realization(system, _network_spec(exp, scen), chan, rng)
+    net = real.network
+    agents, anchors = net.agent_index, net.anchor_index
+    col = np.empty(net.n_nodes, np.int64)
+    col[agents] = np.arange(agents.size)
+    col[anchors] = agents.size + np.arange(anchors.size)
+    K = exp.n_steps
+    z = np.full((K, agents.size, net.n_nodes), np.nan)
+    err, var, n_links = [], [], 0
+    for k in range(1, K + 1):
+        lk = real.links[k]
+        rx_agent = ~net.is_anchor[lk[:, 0]]
+        lk = lk[rx_agent]
+        n_links += lk.shape[0]
+        if lk.shape[0] == 0:
+            continue
+        table = correlation_tables(
+            real.received[k][rx_agent], real.symbols, system, beta=rspec.beta, tx_index=lk[:, 1]
+        )
+        est = estimate("sage", table, **rspec.method_options("sage"))
+        rng_m = est.range_m / real.ways
+        ok = np.asarray(est.valid, bool)
+        z[k - 1, col[lk[ok, 0]], col[lk[ok, 1]]] = rng_m[ok]
+        err.append((rng_m - net.distances(k)[rx_agent])[ok])
+        var.append(est.variance_m2[ok] / real.ways**2)
+    states = network_states(net, model)[: K + 1]
+    sc = RangeScenario(
+        model=model,
+        anchors=np.ascontiguousarray(net.positions[0, anchors]),
+        initial_states=states[0],
+        states=states[1:],
+        z=z,
+        comm_range_m=scen["comm_range_m"],
+    )
+    err, var = np.concatenate(err), np.concatenate(var)
+    sigma = exp.sage_sigma_m
+    if sigma is None:
+        sigma = math.sqrt(float(np.median(var))) if var.size else exp.sigma_r
+    info = {
+        "sq_err_sum": float(np.sum(err**2)),
+        "n_valid": int(err.size),
+        "n_links": int(n_links),
+        "sigma_m": float(sigma),
+    }
+    return sc, info
+
+
+def _task(payload, seed_seq):
+    """One Monte Carlo run of one scenario: measurements, prior, every method."""
+    exp, scen, options, extra = payload
+    streams = seed_seq.spawn(2 + len(exp.methods))
+    rng = np.random.default_rng(streams[0])
+    if exp.measurements == "gaussian":
+        sc, info = _gaussian_scenario(exp, scen, rng)
+        track_sc = sc
+    else:
+        sc, info = _sage_scenario(exp, scen, *extra, rng)
+        model = dataclasses.replace(sc.model, sigma_r=info["sigma_m"])
+        track_sc = dataclasses.replace(sc, model=model)
+    mean0, cov0 = paper_prior(
+        sc,
+        np.random.default_rng(streams[1]),
+        sigma_p=exp.sigma_p,
+        accel_init_factor=exp.accel_init_factor,
+    )
+    d = exp.dim
+    out = {"scenario": sc, "prior_cov": cov0, "sage": info}
+    for s, m in zip(streams[2:], exp.methods, strict=True):
+        res = _RUN[m](track_sc, mean0, cov0, np.random.default_rng(s), options[m])
+        for b, name in enumerate("pva"[: sc.model.order]):
+            e = res.mean[..., b * d : (b + 1) * d] - sc.states[..., b * d : (b + 1) * d]
+            out[f"{m}|e_{name}"] = np.linalg.norm(e, axis=-1)  # [K, n_agents]
+        out[f"{m}|step_s"] = res.step_s
+        out[f"{m}|agent_s"] = res.agent_s
+    return out
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    exp = TrackingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
+    exp.model()  # validates the model
+    options = method_options(recipe.section("localization"), exp)
+    extra = None
+    if exp.measurements == "sage":
+        from phyloc.channels import ChannelSpec
+        from phyloc.evaluation._common import scenario_specs
+        from phyloc.evaluation.ranging_experiment import RangingSpec
+
+        chan = recipe.section("channel", ChannelSpec)
+        chan = scenario_specs(chan, {"channel": chan.scenario})["channel"]
+        extra = (recipe.system, chan, recipe.section("ranging", RangingSpec))
+    for tok, scen in exp.scenarios.items():  # validate every network before any work starts
+        try:
+            _network_spec(exp, scen)
+        except ValidationError as exc:
+            raise ValidationError(
+                f"experiment.scenarios.{tok}.{exc.field}", exc.value, exc.allowed
+            ) from None
+    payloads, keys = [], []
+    for tok, scen in exp.scenarios.items():
+        for r in range(exp.runs):
+            payloads.append((exp, scen, options, extra))
+            keys.append((tok, r))
+    results = run_tasks(
+        _task,
+        payloads,
+        recipe.seed,
+        workers=workers,
+        scheduler=scheduler,
+        desc="tracking",
+        progress=progress,
+    )
+    figures, series = _aggregate(keys, results, exp)
+    meta = {
+        "recipe": recipe.name,
+        "kind": recipe.kind,
+        "seed": recipe.seed,
+        "fast": fast,
+        "runs": exp.runs,
+        "n_steps": exp.n_steps,
+        "scenarios": {t: dict(s) for t, s in exp.scenarios.items()},
+        "methods": list(exp.methods),
+        "blocks": list("pva"[: exp.model().order]),
+        "report_steps": list(exp.report_steps),
+        "outage_steps": list(exp.outage_steps),
+        "outage_thresholds_m": list(exp.outage_thresholds_m),
+        "measurements": exp.measurements,
+        "options": {m: dataclasses.asdict(o) for m, o in options.items()},
+        "labels": {"pfbp_reg": "PF-BP reg", "sirbp": "SIR-BP", "spbp": "SP-BP", "edh": "EDH"},
+        "timing": "median wall time over all steps of all runs (includes worker contention)",
+    }
+    if exp.measurements == "sage":
+        meta["pcrlb_note"] = "Gaussian-model PCRLB at experiment.sigma_r on the valid SAGE links"
+    return {"figures": figures, "series": series, "meta": meta}
+
+
+def _aggregate(keys, results, exp):
+    K = exp.n_steps
+    figures: dict[str, float] = {}
+    series: dict[str, object] = {
+        "k": np.arange(1, K + 1),
+        "outage_threshold_m": OUTAGE_GRID_M,
+    }
+    blocks = "pva"[: exp.model().order]
+    for tok in exp.scenarios:
+        parts = [res for (t, _), res in zip(keys, results, strict=True) if t == tok]
+        bound = pcrlb([p["scenario"] for p in parts], parts[0]["prior_cov"]).bounds
+        for b in blocks:
+            series[f"pcrlb.{tok}.{_UNITS[b]}"] = bound[b]
+            for k in exp.report_steps:
+                figures[f"pcrlb.{tok}.k{k}.{_UNITS[b]}"] = float(bound[b][k - 1])
+        if exp.measurements == "sage":
+            n_valid = sum(p["sage"]["n_valid"] for p in parts)
+            sq = sum(p["sage"]["sq_err_sum"] for p in parts)
+            figures[f"sage.{tok}.range_rmse_m"] = math.sqrt(sq / n_valid) if n_valid else math.nan
+            figures[f"sage.{tok}.valid_fraction"] = n_valid / max(
+                sum(p["sage"]["n_links"] for p in parts), 1
+            )
+            figures[f"sage.{tok}.sigma_m"] = float(np.mean([p["sage"]["sigma_m"] for p in parts]))
+        for m in exp.methods:
+            base = f"{m}.{tok}"
+            for b in blocks:
+                e = np.concatenate([p[f"{m}|e_{b}"] for p in parts], axis=1)  # [K, runs·agents]
+                rmse = np.sqrt(np.mean(e**2, axis=1))
+                series[f"{base}.rmse_{_UNITS[b]}"] = rmse
+                for k in exp.report_steps:
+                    figures[f"{base}.k{k}.rmse_{_UNITS[b]}"] = float(rmse[k - 1])
+            ep = np.concatenate([p[f"{m}|e_p"] for p in parts], axis=1)
+            for k in exp.report_steps:
+                figures[f"{base}.k{k}.rmse_over_pcrlb"] = float(
+                    figures[f"{base}.k{k}.rmse_p_m"] / bound["p"][k - 1]
+                )
+            figures[f"{base}.rmse_p_all_m"] = float(np.sqrt(np.mean(ep**2)))
+            for k in exp.outage_steps:
+                ek = ep[k - 1]
+                series[f"{base}.k{k}.outage"] = np.mean(ek[:, None] > OUTAGE_GRID_M, axis=0)
+                for x in exp.outage_thresholds_m:
+                    figures[f"{base}.k{k}.outage_{_threshold_name(x)}"] = float(np.mean(ek > x))
+            series[f"{base}.error_cf"] = np.mean(ep.reshape(-1)[:, None] <= OUTAGE_GRID_M, axis=0)
+            figures[f"{base}.step_s"] = float(
+                np.median(np.concatenate([p[f"{m}|step_s"] for p in parts]))
+            )
+            if m != "edh":
+                figures[f"{base}.agent_s"] = float(
+                    np.median(np.concatenate([p[f"{m}|agent_s"] for p in parts]))
+                )
+        if "sirbp" in exp.methods and "pfbp" in exp.methods:
+            figures[f"sirbp_over_pfbp.{tok}.step_ratio"] = (
+                figures[f"sirbp.{tok}.step_s"] / figures[f"pfbp.{tok}.step_s"]
+            )
+    return figures, series
+
+
+def is_timing(name: str) -> bool:
+    """True for the wall-time figures (the only ones that depend on the machine)."""
+    return name.endswith(_TIMING_SUFFIXES)
+
+
+def summary_headers(results: dict):
+    """Headers of :func:`summary_rows`."""
+    meta = results["meta"]
+    last = max(meta["report_steps"]) if meta["report_steps"] else None
+    return [
+        "scenario",
+        "method",
+        *[f"RMSE_p k={k} [m]" for k in meta["report_steps"]],
+        f"RMSE/PCRLB k={last}",
+        "step [s]",
+        "per agent [s]",
+    ]
+
+
+def summary_rows(results: dict):
+    """Position RMSE at the report steps, RMSE/PCRLB at the last one, time per step."""
+    f, meta = results["figures"], results["meta"]
+    steps = meta["report_steps"]
+    rows = []
+    for tok in meta["scenarios"]:
+        for m in meta["methods"]:
+            base = f"{m}.{tok}"
+            rows.append(
+                (
+                    tok,
+                    m,
+                    *[f[f"{base}.k{k}.rmse_p_m"] for k in steps],
+                    f[f"{base}.k{steps[-1]}.rmse_over_pcrlb"] if steps else None,
+                    f[f"{base}.step_s"],
+                    f.get(f"{base}.agent_s"),
+                )
+            )
+        rows.append((tok, "PCRLB", *[f[f"pcrlb.{tok}.k{k}.p_m"] for k in steps], None, None, None))
+    return rows
+
+
+def summary_lines(results: dict):
+    """Outage probabilities and the SIR-BP/PF-BP time ratio."""
+    f, meta = results["figures"], results["meta"]
+    out = [
+        f"{meta['runs']} runs x {meta['n_steps']} steps, {meta['measurements']} measurements; "
+        f"times: {meta['timing']}"
+    ]
+    for tok in meta["scenarios"]:
+        for k in meta["outage_steps"]:
+            parts = []
+            for m in meta["methods"]:
+                o = ", ".join(
+                    f"{f[f'{m}.{tok}.k{k}.outage_{_threshold_name(x)}']:.2f}"
+                    for x in meta["outage_thresholds_m"]
+                )
+                parts.append(f"{m} {o}")
+            thr = "/".join(f"{x:g}" for x in meta["outage_thresholds_m"])
+            out.append(f"{tok} k={k} outage P(e > {thr} m): " + "; ".join(parts))
+        if (key := f"sirbp_over_pfbp.{tok}.step_ratio") in f:
+            out.append(f"{tok}: SIR-BP / PF-BP time per step = {f[key]:.3g}")
+        if (key := f"sage.{tok}.range_rmse_m") in f:
+            out.append(
+                f"{tok}: SAGE range RMSE {f[key]:.3g} m over valid links "
+                f"({100 * f[f'sage.{tok}.valid_fraction']:.0f} % valid), "
+                f"σ given to the trackers {f[f'sage.{tok}.sigma_m']:.3g} m"
+            )
+    return out
+
+
+def plot(results: dict, path) -> None:
+    """RMSE of p, v, a versus k with the PCRLB (Fig. 4, 7) and outage curves (Fig. 6), per
+    scenario (columns), from results only."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    ser, meta = results["series"], results["meta"]
+    toks = list(meta["scenarios"])
+    blocks = meta["blocks"]
+    n_rows = len(blocks) + 1
+    fig = Figure(figsize=(4.8 * len(toks), 3.0 * n_rows), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(n_rows, len(toks), squeeze=False)
+    k = ser["k"]
+    ylabel = {"p": "RMSE_p [m]", "v": "RMSE_v [m/s]", "a": "RMSE_a [m/s²]"}
+    for j, tok in enumerate(toks):
+        for r, b in enumerate(blocks):
+            ax = axes[r, j]
+            for i, m in enumerate(meta["methods"]):
+                ax.semilogy(k, ser[f"{m}.{tok}.rmse_{_UNITS[b]}"], color=f"C{i}", label=m)
+            ax.semilogy(k, ser[f"pcrlb.{tok}.{_UNITS[b]}"], "k--", label="PCRLB")
+            ax.set_ylabel(ylabel[b])
+            ax.set_xlabel("time step k")
+            ax.grid(True, which="both", alpha=0.3)
+            if r == 0:
+                ax.set_title(f"{tok} (r_max = {meta['scenarios'][tok]['comm_range_m']:g} m)")
+                ax.legend(fontsize=7)
+        ax = axes[-1, j]
+        styles = ("-", "--", ":", "-.")
+        for i, m in enumerate(meta["methods"]):
+            for ko, ls in zip(meta["outage_steps"], styles, strict=False):
+                ax.semilogx(
+                    ser["outage_threshold_m"],
+                    ser[f"{m}.{tok}.k{ko}.outage"],
+                    ls,
+                    color=f"C{i}",
+                    label=f"{m} k={ko}",
+                )
+        ax.set_xlabel("position error threshold [m]")
+        ax.set_ylabel("outage probability")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6, ncol=2)
+    fig.suptitle(
+        f"Cooperative tracking vs PCRLB — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
+    )
+    fig.savefig(path, dpi=100)
