@@ -79,6 +79,7 @@ CDF_GRID_M = np.linspace(0.0, 30.0, 301)
 class LocalizationSpec:
     """``[localization]``: filter options (:class:`DPFOptions` fields) and priors.
 
+    ``outlier_nats`` the marginal EL's per-link evidence bound (``inf`` disables it);
     ``prior_std_m`` std of the truth-free Gaussian priors around the coarse solution [m];
     ``informed_std_m`` σ0 of the informed start [m]; ``gauge_extent_m`` half-width of the
     uniform gauge priors [m].
@@ -88,20 +89,29 @@ class LocalizationSpec:
     prior_std_m: float = 10.0
     informed_std_m: float = 10.0
     gauge_extent_m: float = 150.0
+    outlier_nats: float = 10.0
 
     def __post_init__(self):
         v.positive("localization.prior_std_m", self.prior_std_m)
         v.positive("localization.informed_std_m", self.informed_std_m)
         v.positive("localization.gauge_extent_m", self.gauge_extent_m)
+        if not float(self.outlier_nats) > 0:
+            raise ValidationError("localization.outlier_nats", self.outlier_nats, "> 0 (inf: off)")
 
     @classmethod
     def from_dict(cls, d: dict) -> LocalizationSpec:
         """From ``[localization]``; the DPF keys are those of :class:`DPFOptions`."""
         d = dict(d)
-        own = {k: d.pop(k) for k in ("prior_std_m", "informed_std_m", "gauge_extent_m") if k in d}
+        own = {
+            k: d.pop(k)
+            for k in ("prior_std_m", "informed_std_m", "gauge_extent_m", "outlier_nats")
+            if k in d
+        }
         dpf_keys = [f.name for f in dataclasses.fields(DPFOptions)]
         check_keys(
-            d, [*dpf_keys, "prior_std_m", "informed_std_m", "gauge_extent_m"], "localization"
+            d,
+            [*dpf_keys, "prior_std_m", "informed_std_m", "gauge_extent_m", "outlier_nats"],
+            "localization",
         )
         return cls(dpf=DPFOptions(**d), **own)
 
@@ -248,7 +258,13 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq):
             s += 1
             if m == "dipnet":
                 lik = MarginalDirectLikelihood(
-                    table, links, agent_of, net.n_agents, window_m=rspec.window_m, ways=ways
+                    table,
+                    links,
+                    agent_of,
+                    net.n_agents,
+                    window_m=rspec.window_m,
+                    ways=ways,
+                    outlier_nats=lspec.outlier_nats,
                 )
             elif m == "dipnet_published":
                 lik = DirectLikelihood(
