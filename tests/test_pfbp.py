@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from range_fixtures import degenerate_scenario
 
 from phyloc.analysis.pcrlb import pcrlb
 from phyloc.errors import ValidationError
@@ -267,22 +268,9 @@ def test_numpy_backend_gives_the_same_track():
 
 def test_degenerate_geometry_stays_finite():
     """Coplanar anchors and an agent without any measurement: no NaN/inf anywhere."""
-    rng = np.random.default_rng(11)
-    model = RangeModel("constant_acceleration", 3)
-    K, n_ag = 3, 3
-    states = np.zeros((K, n_ag, 9))
-    states[:, 0, :3] = [5.0, 5.0, 5.0]
-    states[:, 1, :3] = [8.0, 4.0, 6.0]
-    states[:, 2, :3] = [500.0, 500.0, 500.0]  # far from everything
-    anchors = np.array([[0.0, 0, 0], [20, 0, 0], [0, 20, 0], [20, 20, 0]])  # coplanar
-    nodes = np.concatenate([states[0, :, :3], anchors])
-    d = np.linalg.norm(states[0, :, None, :3] - nodes[None], axis=-1)
-    z = np.where((d < 30) & (d > 0), d + 0.1 * rng.normal(size=d.shape), np.nan)
-    sc = RangeScenario(model, anchors, states[0], states, np.repeat(z[None], K, axis=0), 30.0)
+    rng, _, _, _, _, sc, m, P, F = degenerate_scenario(3)
+    K = 3
     assert np.all(np.isnan(sc.z[:, 2]))
-    m = states[0] + 1.0
-    P = np.repeat(np.diag(np.r_[np.full(3, 4.0), np.full(6, 0.1)])[None], n_ag, axis=0)
-    F, _ = model.matrices()
     expected = np.stack([(np.linalg.matrix_power(F, k + 1) @ m[2])[:3] for k in range(K)])
     sir = SIRBPOptions(n_particles=2000, regularize=True, uniform_positions=False)
     for r, tol in (

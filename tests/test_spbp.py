@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 from naive_spbp import ca_matrices, ukf_track
+from range_fixtures import degenerate_scenario
 
 from phyloc.analysis.pcrlb import pcrlb
 from phyloc.errors import ValidationError
@@ -67,22 +68,9 @@ def test_unscented_update_covariance_is_the_pfbp_ukf_step(rng):
 def test_degenerate_geometry_stays_finite():
     """Coplanar anchors and an agent without any measurement: no NaN/inf; the isolated agent
     is exactly predicted (mean Fᵏ m, covariance Fᵏ P Fᵏᵀ + …)."""
-    rng = np.random.default_rng(11)
-    model = RangeModel("constant_acceleration", 3)
-    K, n_ag = 4, 3
-    states = np.zeros((K, n_ag, 9))
-    states[:, 0, :3] = [5.0, 5.0, 5.0]
-    states[:, 1, :3] = [8.0, 4.0, 6.0]
-    states[:, 2, :3] = [500.0, 500.0, 500.0]  # far from everything
-    anchors = np.array([[0.0, 0, 0], [20, 0, 0], [0, 20, 0], [20, 20, 0]])  # coplanar
-    nodes = np.concatenate([states[0, :, :3], anchors])
-    d = np.linalg.norm(states[0, :, None, :3] - nodes[None], axis=-1)
-    z = np.where((d < 30) & (d > 0), d + 0.1 * rng.normal(size=d.shape), np.nan)
-    sc = RangeScenario(model, anchors, states[0], states, np.repeat(z[None], K, axis=0), 30.0)
+    _, model, anchors, states, z, sc, m, P, F = degenerate_scenario(4)
+    K = 4
     assert np.all(np.isnan(sc.z[:, 2]))
-    m = states[0] + 1.0
-    P = np.repeat(np.diag(np.r_[np.full(3, 4.0), np.full(6, 0.1)])[None], n_ag, axis=0)
-    F, _ = model.matrices()
     for opt in (SPBPOptions(), SPBPOptions(regularize=True), SPBPOptions(factors="centralized")):
         r = run_spbp(sc, m, P, options=opt)
         assert np.all(np.isfinite(r.mean)) and np.all(np.isfinite(r.cov))
