@@ -68,6 +68,36 @@ def test_pcrlb_static_single_step_closed_form():
     assert set(res.bounds) == {"p"}
 
 
+def test_pcrlb_information_vs_bound_average_closed_form():
+    """Two scenarios with different connectivity: the Bayesian PCRLB inverts the mean
+    information, the conditional bound averages the per-scenario inverses (Jensen: larger)."""
+    model = RangeModel("static", 2, sigma_r=0.1)
+    anchors = np.array([[0.0, 0.0], [10.0, 0.0], [0.0, 10.0]])
+    x = np.array([[3.0, 4.0]])
+    scs = []
+    for linked in ([1, 2, 3], [1]):  # all anchors / only the first one
+        z = np.full((1, 1, 4), np.nan)
+        z[0, 0, linked] = 1.0
+        scs.append(RangeScenario(model, anchors, x, x[None], z))
+    P0 = np.eye(2)[None] * 4.0
+    u = (x[0] - anchors) / np.linalg.norm(x[0] - anchors, axis=1, keepdims=True)
+    J_all = np.eye(2) / 4.0 + u.T @ u / 0.01
+    J_one = np.eye(2) / 4.0 + np.outer(u[0], u[0]) / 0.01
+    C_info = np.linalg.inv(0.5 * (J_all + J_one))
+    C_bound = 0.5 * (np.linalg.inv(J_all) + np.linalg.inv(J_one))
+    np.testing.assert_allclose(pcrlb(scs, P0).cov[0], C_info, rtol=1e-10)
+    res_b = pcrlb(scs, P0, average="bound")
+    np.testing.assert_allclose(res_b.cov[0], C_bound, rtol=1e-10)
+    assert res_b.bounds["p"][0] > 1.5 * pcrlb(scs, P0).bounds["p"][0]
+    # identical scenarios: both averages coincide
+    same = [scs[0], scs[0]]
+    np.testing.assert_allclose(
+        pcrlb(same, P0, average="bound").cov, pcrlb(same, P0).cov, rtol=1e-12
+    )
+    with pytest.raises(ValidationError, match="average"):
+        pcrlb(scs, P0, average="mean")
+
+
 def test_pcrlb_validation():
     with pytest.raises(ValidationError, match="scenarios"):
         pcrlb([], np.eye(2)[None])

@@ -54,7 +54,10 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     for s in meta["scenarios"]:
         expected.append(f"sirbp_over_pfbp.{s}.step_ratio")
         for k in meta["report_steps"]:
-            expected += [f"pcrlb.{s}.k{k}.p_m", f"pcrlb.{s}.k{k}.v_m_s", f"pcrlb.{s}.k{k}.a_m_s2"]
+            for b in ("pcrlb", "pcrlb_cond"):
+                expected += [f"{b}.{s}.k{k}.p_m", f"{b}.{s}.k{k}.v_m_s", f"{b}.{s}.k{k}.a_m_s2"]
+            # Jensen: the conditional bound (averaged inverses) is never below the Bayesian one
+            assert f[f"pcrlb_cond.{s}.k{k}.p_m"] >= f[f"pcrlb.{s}.k{k}.p_m"] * (1 - 1e-9)
         for m in meta["methods"]:
             expected += [f"{m}.{s}.step_s", f"{m}.{s}.rmse_p_all_m"]
             if m != "edh":
@@ -62,7 +65,13 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
             for k in meta["report_steps"]:
                 expected += [
                     f"{m}.{s}.k{k}.{q}"
-                    for q in ("rmse_p_m", "rmse_v_m_s", "rmse_a_m_s2", "rmse_over_pcrlb")
+                    for q in (
+                        "rmse_p_m",
+                        "rmse_v_m_s",
+                        "rmse_a_m_s2",
+                        "rmse_over_pcrlb",
+                        "rmse_over_pcrlb_cond",
+                    )
                 ]
             for k in meta["outage_steps"]:
                 expected += [f"{m}.{s}.k{k}.outage_{x}" for x in ("0p1m", "0p3m", "1m")]
@@ -89,7 +98,7 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     te.plot(fast_s1, tmp_path / "t.png")
     assert (tmp_path / "t.png").stat().st_size > 10_000
     rows = te.summary_rows(fast_s1)
-    assert len(rows) == 2 * (len(meta["methods"]) + 1)
+    assert len(rows) == 2 * (len(meta["methods"]) + 2)  # + the two PCRLB rows
     assert all(len(r) == len(te.summary_headers(fast_s1)) for r in rows)
     assert te.summary_lines(fast_s1)
 

@@ -20,7 +20,9 @@ Method options are ``[localization.<method>]`` tables (keys of :class:`PFBPOptio
 :class:`SIRBPOptions`, :class:`SPBPOptions`; ``pfbp_reg`` defaults to ``regularize = true``);
 ``experiment.method_options`` (usually in ``[experiment.fast]``) overrides single keys, e.g.
 SIR-BP's particle count in the CI setting. The PCRLB (:mod:`phyloc.analysis.pcrlb`) is the
-Tichavský recursion with the range information averaged over the true trajectories of all runs.
+Tichavský recursion with the range information averaged over the true trajectories of all runs
+(the Bayesian bound, ``pcrlb.*``); ``pcrlb_cond.*`` averages the per-trajectory bounds instead
+(the conditional bound, never lower; see :mod:`phyloc.analysis.pcrlb`).
 
 Measurements (``experiment.measurements``)
     ``"gaussian"``  the paper's model (eq. (8)): ``z = ‖p_i − p_j‖ + N(0, σ²)``, ``σ = sigma_r``,
@@ -44,8 +46,10 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)
     ``<m>.<s>.k<k>.rmse_v_m_s``      velocity RMSE [m/s]
     ``<m>.<s>.k<k>.rmse_a_m_s2``     acceleration RMSE [m/s²] (CA only)
     ``<m>.<s>.k<k>.rmse_over_pcrlb`` ``rmse_p_m`` over ``pcrlb.<s>.k<k>.p_m``
+    ``<m>.<s>.k<k>.rmse_over_pcrlb_cond``  ``rmse_p_m`` over ``pcrlb_cond.<s>.k<k>.p_m``
     ``pcrlb.<s>.k<k>.p_m`` / ``v_m_s`` / ``a_m_s2``   PCRLB on the position/velocity/acceleration
                                      RMSE
+    ``pcrlb_cond.<s>.k<k>.p_m`` / ...   the conditional bound (per-trajectory bounds averaged)
     ``<m>.<s>.k<ko>.outage_<x>m``    fraction of (run, agent) position errors > x at step ko
                                      (Fig. 6)
     ``<m>.<s>.rmse_p_all_m``         position RMSE over the whole trajectory
@@ -58,7 +62,8 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)
                                      only) SAGE range RMSE over valid links, fraction of valid
                                      links, mean σ given to the trackers
 Series: ``k`` (1 … K); ``<m>.<s>.rmse_p_m`` / ``rmse_v_m_s`` / ``rmse_a_m_s2`` and
-``pcrlb.<s>.p_m`` / ``v_m_s`` / ``a_m_s2`` per step; ``outage_threshold_m`` (log grid) with
+``pcrlb.<s>.p_m`` / ``v_m_s`` / ``a_m_s2`` (and ``pcrlb_cond.*``) per step;
+``outage_threshold_m`` (log grid) with
 ``<m>.<s>.k<ko>.outage`` (outage probability versus threshold, Fig. 6) and
 ``<m>.<s>.error_cf`` (cumulative frequency of the position error over the whole trajectory,
 Fig. 4a, = 1 − outage over all steps).
@@ -450,11 +455,14 @@ def _aggregate(keys, results, exp):
     blocks = "pva"[: exp.model().order]
     for tok in exp.scenarios:
         parts = [res for (t, _), res in zip(keys, results, strict=True) if t == tok]
-        bound = pcrlb([p["scenario"] for p in parts], parts[0]["prior_cov"]).bounds
+        scs, P0 = [p["scenario"] for p in parts], parts[0]["prior_cov"]
+        bound = pcrlb(scs, P0).bounds
+        cond = pcrlb(scs, P0, average="bound").bounds
         for b in blocks:
-            series[f"pcrlb.{tok}.{_UNITS[b]}"] = bound[b]
-            for k in exp.report_steps:
-                figures[f"pcrlb.{tok}.k{k}.{_UNITS[b]}"] = float(bound[b][k - 1])
+            for name, bb in (("pcrlb", bound), ("pcrlb_cond", cond)):
+                series[f"{name}.{tok}.{_UNITS[b]}"] = bb[b]
+                for k in exp.report_steps:
+                    figures[f"{name}.{tok}.k{k}.{_UNITS[b]}"] = float(bb[b][k - 1])
         if exp.measurements == "sage":
             n_valid = sum(p["sage"]["n_valid"] for p in parts)
             sq = sum(p["sage"]["sq_err_sum"] for p in parts)
@@ -475,6 +483,9 @@ def _aggregate(keys, results, exp):
             for k in exp.report_steps:
                 figures[f"{base}.k{k}.rmse_over_pcrlb"] = float(
                     figures[f"{base}.k{k}.rmse_p_m"] / bound["p"][k - 1]
+                )
+                figures[f"{base}.k{k}.rmse_over_pcrlb_cond"] = float(
+                    figures[f"{base}.k{k}.rmse_p_m"] / cond["p"][k - 1]
                 )
             figures[f"{base}.rmse_p_all_m"] = float(np.sqrt(np.mean(ep**2)))
             for k in exp.outage_steps:
@@ -511,6 +522,7 @@ def summary_headers(results: dict):
         "method",
         *[f"RMSE_p k={k} [m]" for k in meta["report_steps"]],
         f"RMSE/PCRLB k={last}",
+        f"RMSE/PCRLB cond. k={last}",
         "step [s]",
         "per agent [s]",
     ]
@@ -530,11 +542,15 @@ def summary_rows(results: dict):
                     m,
                     *[f[f"{base}.k{k}.rmse_p_m"] for k in steps],
                     f[f"{base}.k{steps[-1]}.rmse_over_pcrlb"] if steps else None,
+                    f[f"{base}.k{steps[-1]}.rmse_over_pcrlb_cond"] if steps else None,
                     f[f"{base}.step_s"],
                     f.get(f"{base}.agent_s"),
                 )
             )
-        rows.append((tok, "PCRLB", *[f[f"pcrlb.{tok}.k{k}.p_m"] for k in steps], None, None, None))
+        for name, label in (("pcrlb", "PCRLB"), ("pcrlb_cond", "PCRLB (cond.)")):
+            rows.append(
+                (tok, label, *[f[f"{name}.{tok}.k{k}.p_m"] for k in steps], None, None, None, None)
+            )
     return rows
 
 
@@ -588,6 +604,7 @@ def plot(results: dict, path) -> None:
             for i, m in enumerate(meta["methods"]):
                 ax.semilogy(k, ser[f"{m}.{tok}.rmse_{_UNITS[b]}"], color=f"C{i}", label=m)
             ax.semilogy(k, ser[f"pcrlb.{tok}.{_UNITS[b]}"], "k--", label="PCRLB")
+            ax.semilogy(k, ser[f"pcrlb_cond.{tok}.{_UNITS[b]}"], "k:", label="PCRLB (cond.)")
             ax.set_ylabel(ylabel[b])
             ax.set_xlabel("time step k")
             ax.grid(True, which="both", alpha=0.3)
