@@ -26,3 +26,17 @@ def test_serial_and_two_dask_workers_give_identical_results():
         np.testing.assert_array_equal(x, y)
     # and different tasks really got different streams
     assert not np.array_equal(serial[0][1], serial[1][1])
+
+
+def _blas_threads(payload, seed_seq):
+    from threadpoolctl import threadpool_info
+
+    return [d["num_threads"] for d in threadpool_info() if d["user_api"] == "blas"]
+
+
+def test_tasks_run_with_one_blas_thread():
+    """Tasks are the unit of parallelism: inside a task BLAS runs on one thread, in process
+    and on Dask workers alike."""
+    for workers in (None, 2):
+        for threads in run_tasks(_blas_threads, range(2), 3, workers=workers, progress=False):
+            assert threads and all(t == 1 for t in threads)
