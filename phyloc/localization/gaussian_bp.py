@@ -1,0 +1,537 @@
+"""Baselines of POA-NBP §V for static 2-D range networks: parametric (Gaussian) BP and WLS.
+
+Both use the range matrix convention of :mod:`phyloc.localization.static_ranges`
+(``ranges[j, i] = ẑ_{i→j}``, measured by node ``j``) and a Gaussian view of the error model:
+with ``debias`` the error mean ``b`` is removed (``b = 1/λ`` for the exponential model of eq.
+(2), 0 for the Gaussian one) and the variance ``s²`` is matched (``s = 1/λ`` resp. ``σ``).
+
+**Gaussian BP** (:func:`run_gaussian_bp`, 'PBP' of [19]): every agent's belief is
+``N(μ_j, P_j)``. In iteration ``l`` (parallel schedule, neighbours' beliefs of ``l − 1``),
+agent ``j`` multiplies its prior ``N(μ_0, Λ_0⁻¹)`` (moment match of the uniform prior over the
+region: centre and ``diag(w_x², w_y²)/12``) with one linearized message per link ``i → j``:
+with ``d = ‖x̄ − μ_i‖``, ``u = (x̄ − μ_i)/d`` at the linearization point ``x̄``,
+
+.. math::  \\hat z - b \\approx d + u^T (x_j - \\bar x) - u^T (x_i - \\mu_i) + (\\epsilon - b),
+
+which, marginalised over ``x_i ~ N(μ_i, P_i)`` (anchors: ``P_i = 0``), is the Gaussian
+message ``Λ += u uᵀ/R``, ``η += u (ẑ − b − d + uᵀx̄)/R`` with ``R = s² + uᵀ P_i u``. The belief is
+``P_j = Λ⁻¹``, ``μ_j = Λ⁻¹ η``; it is relinearized ``n_inner`` times per iteration at the new
+mean (an iterated EKF update, i.e. Gauss–Newton on the MAP cost with fixed neighbour beliefs)
+and clipped to the region. As in the NBP of the paper, neighbours send their full beliefs.
+
+**Weighted least squares** (:func:`run_wls`, 'WLS' of [5]): Gauss–Newton with
+Levenberg–Marquardt damping on
+
+.. math::  F(X) = \\sum_{(j, i)} w_{ji} (\\hat z_{i\\to j} - b - \\lVert x_j - x_i \\rVert)^2,
+
+``w = 1/s²`` unless ``link_weights`` are given. ``mode="joint"``: centralized, all agents at
+once, one damped GN step per iteration (every finite range entry involving an agent is a term;
+``link_mode="own"`` keeps only the ranges the agents measured). ``mode="distributed"``: per
+iteration each agent takes ``n_inner`` damped GN steps on its own position with the anchors
+and its neighbours' previous estimates held fixed (Jacobi).
+
+**Start**: ``initial`` ([n_agents, 2]) or :func:`heuristic_start`: the centroid of an agent's
+anchor neighbours; with a single anchor the point at the measured range from it towards the
+region centre; otherwise the mean of the neighbours' starts (propagated over the graph); the
+region centre for the rest. A deterministic offset of 1 mm (golden-angle directions) separates
+agents that would otherwise start at the same point (a zero distance has no gradient).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from phyloc import _validate as v
+from phyloc.errors import ValidationError
+from phyloc.localization.static_ranges import (
+    LINK_MODES,
+    RangeError,
+    StaticNetwork,
+    StaticResult,
+    check_error_model,
+    check_region,
+    check_static_network,
+    convergence_iteration,
+)
+from phyloc.phy.system import check_keys
+
+WLS_MODES = ("joint", "distributed")
+_GOLDEN = math.pi * (3.0 - math.sqrt(5.0))
+_EPS_D = 1e-9  # distances below this [m] have no direction: the term is skipped
+
+
+def _choice(name, value, allowed):
+    if not isinstance(value, str) or value not in allowed:
+        raise ValidationError(name, value, "must be one of " + ", ".join(repr(a) for a in allowed))
+    return value
+
+
+def _moments(model: RangeError, debias: bool) -> tuple[float, float]:
+    """``(b, s²)`` of the Gaussian view of the error model."""
+    b = model.bias_m if debias else 0.0
+    return b, model.std_m**2
+
+
+def _clip(x, region):
+    return np.clip(x, (region[0], region[1]), (region[2], region[3]))
+
+
+def heuristic_start(net: StaticNetwork, region, link_mode: str = "own") -> np.ndarray:
+    """Truth-free starting positions ``[n_agents, 2]`` (see the module docstring)."""
+    reg = check_region(region)
+    centre = np.array([(reg[0] + reg[2]) / 2, (reg[1] + reg[3]) / 2])
+    n_ag = net.n_agents
+    start = np.full((n_ag, 2), np.nan)
+    node_to_agent = {int(j): a for a, j in enumerate(net.agents)}
+    links = [net.links(int(j), link_mode) for j in net.agents]
+    for a in range(n_ag):
+        anc = {}
+        for i, z in links[a]:
+            if net.is_anchor[i]:
+                anc.setdefault(i, []).append(z)
+        if len(anc) >= 2:
+            start[a] = np.mean([net.positions[i] for i in anc], axis=0)
+        elif len(anc) == 1:
+            ((i, zs),) = anc.items()
+            p = net.positions[i]
+            d = centre - p
+            nd = np.linalg.norm(d)
+            u = d / nd if nd > 0 else np.array([1.0, 0.0])
+            start[a] = p + float(np.mean(zs)) * u
+    for _ in range(n_ag):  # propagate over agent neighbours
+        unset = np.flatnonzero(np.isnan(start[:, 0]))
+        if unset.size == 0:
+            break
+        new = start.copy()
+        for a in unset:
+            nb = [node_to_agent[i] for i, _ in links[a] if not net.is_anchor[i]]
+            known = [start[b] for b in nb if not np.isnan(start[b, 0])]
+            if known:
+                new[a] = np.mean(known, axis=0)
+        if np.array_equal(np.isnan(new), np.isnan(start)):
+            break
+        start = new
+    start[np.isnan(start[:, 0])] = centre
+    ang = _GOLDEN * np.arange(n_ag)
+    start = start + 1e-3 * np.column_stack([np.cos(ang), np.sin(ang)])
+    return _clip(start, reg)
+
+
+def _check_initial(initial, net, region, link_mode):
+    if initial is None:
+        return heuristic_start(net, region, link_mode)
+    x = v.finite_array("initial", initial, ndim=2)
+    if x.shape != (net.n_agents, 2):
+        raise ValidationError(
+            "initial", f"array of shape {x.shape}", f"must be ({net.n_agents}, 2)"
+        )
+    return x.copy()
+
+
+# ---------------------------------------------------------------------------------------------
+# Gaussian BP
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class GaussianBPOptions:
+    """Options of :func:`run_gaussian_bp`.
+
+    Parameters
+    ----------
+    n_iterations : int
+        BP iterations (10).
+    n_inner : int
+        Relinearizations per iteration (3).
+    link_mode : {"own", "both"}
+        Ranges entering agent ``j``: its own ``ẑ_{i→j}`` ("own") or also ``ẑ_{j→i}``.
+    debias : bool
+        Remove the error model's mean from the ranges (True).
+    convergence_tol_m : float
+        Mean estimate change [m] below which the run has converged (1e-3).
+    stop_on_convergence : bool
+    """
+
+    n_iterations: int = 10
+    n_inner: int = 3
+    link_mode: str = "own"
+    debias: bool = True
+    convergence_tol_m: float = 1e-3
+    stop_on_convergence: bool = False
+
+    def __post_init__(self):
+        for name in ("n_iterations", "n_inner"):
+            object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=1))
+        _choice("link_mode", self.link_mode, LINK_MODES)
+        object.__setattr__(
+            self, "convergence_tol_m", v.positive("convergence_tol_m", self.convergence_tol_m)
+        )
+
+    @classmethod
+    def from_dict(cls, d: dict, section: str = "localization") -> GaussianBPOptions:
+        """Build from a recipe table; unknown keys are errors naming the closest valid key."""
+        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        return cls(**d)
+
+
+def gaussian_bp_update(x0, prior_mean, prior_info, nb_mean, nb_cov, z, b, s2, n_inner, region):
+    """One agent's belief update of Gaussian BP (module docstring).
+
+    Parameters
+    ----------
+    x0 : [2] float64
+        First linearization point.
+    prior_mean : [2], prior_info : [2, 2]
+        ``μ_0``, ``Λ_0``.
+    nb_mean : [L, 2], nb_cov : [L, 2, 2]
+        Neighbour beliefs (anchors: their position and zeros).
+    z : [L] float64
+        Ranges.
+    b, s2 : float
+        Error mean removed and error variance.
+
+    Returns
+    -------
+    mean : [2], cov : [2, 2]
+    """
+    x = np.asarray(x0, dtype=np.float64).copy()
+    info = prior_info
+    for _ in range(n_inner):
+        info = prior_info.copy()
+        eta = prior_info @ prior_mean
+        diff = x[None, :] - nb_mean
+        d = np.linalg.norm(diff, axis=1)
+        ok = d > _EPS_D
+        if ok.any():
+            u = diff[ok] / d[ok, None]
+            R = s2 + np.einsum("li,lij,lj->l", u, nb_cov[ok], u)
+            info = info + np.einsum("li,lj,l->ij", u, u, 1.0 / R)
+            eta = eta + u.T @ ((z[ok] - b - d[ok] + u @ x) / R)
+        x = _clip(np.linalg.solve(info, eta), region)
+    return x, np.linalg.inv(info)
+
+
+def run_gaussian_bp(
+    ranges,
+    anchors,
+    anchor_positions,
+    options: GaussianBPOptions | None = None,
+    *,
+    region,
+    initial=None,
+    error_model: RangeError | None = None,
+) -> StaticResult:
+    """Parametric (Gaussian) BP with linearized messages, parallel schedule ('PBP' of [19]).
+
+    Parameters
+    ----------
+    ranges : [N, N] float64
+        ``ranges[j, i] = ẑ_{i→j}`` [m] (NaN: no link).
+    anchors : [N] bool or sequence of int
+    anchor_positions : [n_anchors, 2] or [N, 2] float64
+    options : GaussianBPOptions, optional
+    region : (xmin, ymin, xmax, ymax)
+        Deployment area: prior moments and clipping.
+    initial : [n_agents, 2] float64, optional
+        First linearization points (default :func:`heuristic_start`).
+    error_model : ExponentialRangeError or GaussianRangeError, optional
+        Default exponential, mean 0.38 m.
+
+    Returns
+    -------
+    StaticResult
+        ``estimates`` (belief means) and ``covariances`` per iteration, label ``"gbp"``.
+
+    Examples
+    --------
+    >>> from phyloc.localization.static_ranges import paper_static_scenario
+    >>> sc = paper_static_scenario(np.random.default_rng(3), n_agents=10)
+    >>> run_gaussian_bp(sc.ranges, sc.is_anchor, sc.anchor_positions,
+    ...                 region=sc.region).estimates.shape
+    (10, 10, 2)
+    """
+    opt = options if options is not None else GaussianBPOptions()
+    if not isinstance(opt, GaussianBPOptions):
+        raise ValidationError("options", type(opt).__name__, "must be GaussianBPOptions")
+    net = check_static_network(ranges, anchors, anchor_positions)
+    reg = check_region(region)
+    model = check_error_model(error_model)
+    b, s2 = _moments(model, opt.debias)
+    mean = _check_initial(initial, net, reg, opt.link_mode)
+    n_ag = net.n_agents
+    mu0 = np.array([(reg[0] + reg[2]) / 2, (reg[1] + reg[3]) / 2])
+    P0 = np.diag([(reg[2] - reg[0]) ** 2 / 12.0, (reg[3] - reg[1]) ** 2 / 12.0])
+    L0 = np.linalg.inv(P0)
+    cov = np.repeat(P0[None], n_ag, axis=0)
+    node_to_agent = {int(j): a for a, j in enumerate(net.agents)}
+    links = [net.links(int(j), opt.link_mode) for j in net.agents]
+
+    L = opt.n_iterations
+    out_m, out_P, out_t = np.empty((L, n_ag, 2)), np.empty((L, n_ag, 2, 2)), np.zeros((L, n_ag))
+    n_done = L
+    for it in range(L):
+        new_m, new_P = mean.copy(), cov.copy()
+        for a in range(n_ag):
+            t0 = time.perf_counter()
+            if links[a]:
+                nb_m = np.empty((len(links[a]), 2))
+                nb_P = np.zeros((len(links[a]), 2, 2))
+                z = np.empty(len(links[a]))
+                for q, (i, zq) in enumerate(links[a]):
+                    z[q] = zq
+                    if net.is_anchor[i]:
+                        nb_m[q] = net.positions[i]
+                    else:
+                        nb_m[q], nb_P[q] = mean[node_to_agent[i]], cov[node_to_agent[i]]
+                new_m[a], new_P[a] = gaussian_bp_update(
+                    mean[a], mu0, L0, nb_m, nb_P, z, b, s2, opt.n_inner, reg
+                )
+            out_t[it, a] = time.perf_counter() - t0
+        mean, cov = new_m, new_P
+        out_m[it], out_P[it] = mean, cov
+        if opt.stop_on_convergence and convergence_iteration(
+            out_m[: it + 1], opt.convergence_tol_m
+        ):
+            n_done = it + 1
+            break
+    return StaticResult(
+        estimates=out_m[:n_done],
+        agents=net.agents,
+        converged_iteration=convergence_iteration(out_m[:n_done], opt.convergence_tol_m),
+        time_per_node_s=out_t[:n_done],
+        covariances=out_P[:n_done],
+        label="gbp",
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# Weighted least squares
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class WLSOptions:
+    """Options of :func:`run_wls`.
+
+    Parameters
+    ----------
+    n_iterations : int
+        Outer iterations (20).
+    mode : {"joint", "distributed"}
+        Centralized joint Gauss–Newton or per-agent Jacobi iterations ("joint").
+    n_inner : int
+        GN steps per agent and iteration in ``"distributed"`` mode (1).
+    link_mode : {"own", "both"}
+        ``"both"`` (default): every range entry involving an agent; ``"own"``: only the ranges
+        the agents measured.
+    debias : bool
+        Remove the error model's mean (True).
+    damping : float
+        Initial Levenberg–Marquardt factor λ (relative to ``diag(JᵀJ)``), > 0 (1e-3).
+    convergence_tol_m : float
+        Mean estimate change [m] below which the run has converged (1e-4).
+    stop_on_convergence : bool
+    """
+
+    n_iterations: int = 20
+    mode: str = "joint"
+    n_inner: int = 1
+    link_mode: str = "both"
+    debias: bool = True
+    damping: float = 1e-3
+    convergence_tol_m: float = 1e-4
+    stop_on_convergence: bool = False
+
+    def __post_init__(self):
+        for name in ("n_iterations", "n_inner"):
+            object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=1))
+        _choice("mode", self.mode, WLS_MODES)
+        _choice("link_mode", self.link_mode, LINK_MODES)
+        for name in ("damping", "convergence_tol_m"):
+            object.__setattr__(self, name, v.positive(name, getattr(self, name)))
+
+    @classmethod
+    def from_dict(cls, d: dict, section: str = "localization") -> WLSOptions:
+        """Build from a recipe table; unknown keys are errors naming the closest valid key."""
+        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        return cls(**d)
+
+
+def _wls_terms(net: StaticNetwork, link_mode: str, w_matrix, s2):
+    """Unique measurement terms ``(row j, col i, z_ji, w_ji)`` with at least one agent."""
+    seen, rows, cols = set(), [], []
+    for j in net.agents:
+        for i, _ in net.links(int(j), "own"):
+            seen.add((int(j), i))
+        if link_mode == "both":
+            for i in np.flatnonzero(np.isfinite(net.ranges[:, j])):
+                seen.add((int(i), int(j)))
+    for r, c in sorted(seen):
+        rows.append(r)
+        cols.append(c)
+    rows, cols = np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)
+    z = net.ranges[rows, cols] if rows.size else np.zeros(0)
+    w = np.full(rows.size, 1.0 / s2) if w_matrix is None else w_matrix[rows, cols]
+    return rows, cols, z, w
+
+
+def wls_cost(positions, rows, cols, z, w, b) -> float:
+    """``F = Σ_t w_t (z_t − b − ‖x_{rows_t} − x_{cols_t}‖)²`` for node positions ``[N, 2]``."""
+    d = np.linalg.norm(positions[rows] - positions[cols], axis=1)
+    return float(np.sum(w * (z - b - d) ** 2))
+
+
+def _residual_jacobian(pos, rows, cols, z, w, b, col_of, n_par):
+    diff = pos[rows] - pos[cols]
+    d = np.linalg.norm(diff, axis=1)
+    sw = np.sqrt(w)
+    r = sw * (z - b - d)
+    u = np.where(d[:, None] > _EPS_D, diff / np.maximum(d, _EPS_D)[:, None], 0.0)
+    J = np.zeros((rows.size, n_par))
+    for ends, sign in ((rows, -1.0), (cols, 1.0)):
+        c = col_of[ends]
+        m = c >= 0
+        t = np.flatnonzero(m)
+        J[t, 2 * c[m]] = sign * sw[m] * u[m, 0]
+        J[t, 2 * c[m] + 1] = sign * sw[m] * u[m, 1]
+    return r, J
+
+
+def _lm_step(pos, agent_nodes, rows, cols, z, w, b, col_of, lam, region, max_tries=20):
+    """One accepted Levenberg–Marquardt step over the agents ``agent_nodes`` (in ``col_of``
+    order); returns the new positions and damping."""
+    n_par = 2 * agent_nodes.size
+    r, J = _residual_jacobian(pos, rows, cols, z, w, b, col_of, n_par)
+    f0 = float(r @ r)
+    A = J.T @ J
+    g = J.T @ r
+    dA = np.diag(A).copy()
+    for _ in range(max_tries):
+        H = A + np.diag(lam * dA + 1e-12)
+        step = np.linalg.solve(H, g)  # r ≈ r0 + J δ, minimise ‖r‖²: δ = −(JᵀJ)⁻¹Jᵀr
+        trial = pos.copy()
+        trial[agent_nodes] = _clip(pos[agent_nodes] - step.reshape(-1, 2), region)
+        if wls_cost(trial, rows, cols, z, w, b) <= f0:
+            return trial, max(lam / 3.0, 1e-12)
+        lam *= 4.0
+    return pos, lam
+
+
+def run_wls(
+    ranges,
+    anchors,
+    anchor_positions,
+    options: WLSOptions | None = None,
+    *,
+    region,
+    initial=None,
+    error_model: RangeError | None = None,
+    link_weights=None,
+) -> StaticResult:
+    """Weighted least-squares localization by damped Gauss–Newton ('WLS' of [5]).
+
+    Parameters
+    ----------
+    ranges : [N, N] float64
+        ``ranges[j, i] = ẑ_{i→j}`` [m] (NaN: no link).
+    anchors : [N] bool or sequence of int
+    anchor_positions : [n_anchors, 2] or [N, 2] float64
+    options : WLSOptions, optional
+    region : (xmin, ymin, xmax, ymax)
+        Iterates are clipped to it.
+    initial : [n_agents, 2] float64, optional
+        Start (default :func:`heuristic_start`).
+    error_model : ExponentialRangeError or GaussianRangeError, optional
+        Gives ``b`` and the default weights ``1/s²``.
+    link_weights : [N, N] float64, optional
+        ``w_ji`` per range entry (>= 0), overriding ``1/s²``.
+
+    Returns
+    -------
+    StaticResult
+        ``estimates`` after every iteration, label ``"wls.joint"`` / ``"wls.distributed"``.
+
+    Examples
+    --------
+    >>> from phyloc.localization.static_ranges import paper_static_scenario
+    >>> sc = paper_static_scenario(np.random.default_rng(3), n_agents=10)
+    >>> run_wls(sc.ranges, sc.is_anchor, sc.anchor_positions, region=sc.region).final.shape
+    (10, 2)
+    """
+    opt = options if options is not None else WLSOptions()
+    if not isinstance(opt, WLSOptions):
+        raise ValidationError("options", type(opt).__name__, "must be WLSOptions")
+    net = check_static_network(ranges, anchors, anchor_positions)
+    reg = check_region(region)
+    model = check_error_model(error_model)
+    b, s2 = _moments(model, opt.debias)
+    n = net.ranges.shape[0]
+    W = None
+    if link_weights is not None:
+        W = np.nan_to_num(np.asarray(link_weights, dtype=np.float64), nan=0.0)
+        if W.shape != (n, n) or np.any(~np.isfinite(W)) or np.any(W < 0):
+            raise ValidationError(
+                "link_weights", f"array of shape {W.shape}", f"must be ({n}, {n}), finite, >= 0"
+            )
+    x0 = _check_initial(initial, net, reg, opt.link_mode)
+    n_ag = net.n_agents
+    pos = net.positions.copy()
+    pos[net.agents] = x0
+    rows, cols, z, w = _wls_terms(net, opt.link_mode, W, s2)
+
+    L = opt.n_iterations
+    out, out_t = np.empty((L, n_ag, 2)), np.zeros((L, n_ag))
+    n_done = L
+    if opt.mode == "joint":
+        col_of = np.full(n, -1)
+        col_of[net.agents] = np.arange(n_ag)
+        lam = opt.damping
+    else:
+        term_sets = []
+        for j in net.agents:
+            sel = (rows == j) | (cols == j)
+            col_of = np.full(n, -1)
+            col_of[j] = 0
+            term_sets.append((sel, col_of))
+        lams = np.full(n_ag, opt.damping)
+    for it in range(L):
+        if opt.mode == "joint":
+            t0 = time.perf_counter()
+            if rows.size and n_ag:
+                pos, lam = _lm_step(pos, net.agents, rows, cols, z, w, b, col_of, lam, reg)
+            out_t[it] = (time.perf_counter() - t0) / max(n_ag, 1)
+        else:
+            new = pos.copy()
+            for a, j in enumerate(net.agents):
+                t0 = time.perf_counter()
+                sel, col_of = term_sets[a]
+                if sel.any():
+                    p = pos.copy()
+                    for _ in range(opt.n_inner):
+                        p, lams[a] = _lm_step(
+                            p,
+                            net.agents[a : a + 1],
+                            rows[sel],
+                            cols[sel],
+                            z[sel],
+                            w[sel],
+                            b,
+                            col_of,
+                            lams[a],
+                            reg,
+                        )
+                    new[j] = p[j]
+                out_t[it, a] = time.perf_counter() - t0
+            pos = new
+        out[it] = pos[net.agents]
+        if opt.stop_on_convergence and convergence_iteration(out[: it + 1], opt.convergence_tol_m):
+            n_done = it + 1
+            break
+    return StaticResult(
+        estimates=out[:n_done],
+        agents=net.agents,
+        converged_iteration=convergence_iteration(out[:n_done], opt.convergence_tol_m),
+        time_per_node_s=out_t[:n_done],
+        label=f"wls.{opt.mode}",
+    )
