@@ -255,6 +255,7 @@ EXPERIMENTS = {
     "ranging": "phyloc.evaluation.ranging_experiment",
     "localization": "phyloc.evaluation.localization_experiment",
     "tracking": "phyloc.evaluation.tracking_experiment",
+    "static": "phyloc.evaluation.static_experiment",
 }
 
 

@@ -10,7 +10,9 @@ validated by their consumers' ``from_dict`` through :meth:`Recipe.section`.
 Top-level keys
     ``kind``  what the recipe runs: ``"ranging"`` (ranging RMSE versus bounds, DiPNet Fig. 4) or
               ``"localization"`` (direct versus two-step localization, DiPNet Fig. 5) or
-              ``"dataset"`` (waveforms for ``phyloc generate``);
+              ``"dataset"`` (waveforms for ``phyloc generate``) or ``"tracking"`` (range-level
+              cooperative tracking, PF-BP paper) or ``"static"`` (static cooperative
+              localization with polygon-constrained NBP, POA paper);
     ``name``  a short identifier (results folder name, figure prefixes);
     ``seed``  the one seed of all randomness (per-task streams come from ``SeedSequence.spawn``);
     ``description``  free text.
@@ -25,7 +27,7 @@ from pathlib import Path
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.phy.system import OFDMSystem, check_keys
 
-KINDS = ("ranging", "localization", "dataset", "tracking")
+KINDS = ("ranging", "localization", "dataset", "tracking", "static")
 TOP_LEVEL = ("kind", "name", "seed", "description")
 SECTIONS = ("system", "network", "channel", "ranging", "experiment", "localization", "dataset")
 

@@ -1,0 +1,176 @@
+"""The ``kind = "static"`` experiment (POA paper §V): figure names, containment, convergence
+rule, ellipse proposal, seeds and workers, recipe errors, the command line."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from phyloc.cli import main
+from phyloc.config import load_recipe
+from phyloc.errors import ValidationError
+from phyloc.evaluation import static_experiment as se
+
+DATASETS = Path(__file__).resolve().parents[1] / "datasets"
+
+TINY = """
+kind = "static"
+name = "tiny_static"
+seed = 5
+
+[experiment]
+topologies = 2
+n_agents = 30
+side_m = 60.0
+n_edges = [4, 16]
+poa_iterations = 3
+methods = ["poa_nbp", "nbp_ellipse", "nbp_min_entropy", "pbp", "wls"]
+n_iterations = 3
+n_samples = 40
+sample_sweep = [20, 40]
+sample_methods = ["poa_nbp"]
+outage_thresholds_m = [1.0]
+
+[localization.nbp]
+bandwidth = "silverman"
+"""
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    return se.run(load_recipe(TINY), progress=False)
+
+
+def test_every_documented_figure_is_there(tiny):
+    f, ser, meta = tiny["figures"], tiny["series"], tiny["meta"]
+    expected = [
+        "poa.containment_fraction",
+        "poa.time_per_node_s",
+        "poa.dropped_fraction",
+        "poa_nbp_vs_nbp_min_entropy.time_to_convergence_ratio",
+        "poa_nbp_vs_nbp_ellipse.time_to_convergence_ratio",
+    ]
+    for ne in (4, 16):
+        expected.append(f"poa.ne{ne}.containment_fraction")
+        expected += [f"poa.ne{ne}.area_it{it}_m2" for it in (1, 2, 3)]
+        assert ser[f"poa.ne{ne}.area_m2"].shape == (3,)
+    expected += [f"ellipse.area_it{it}_m2" for it in (1, 2, 3)]
+    for m in meta["methods"]:
+        expected += [
+            f"{m}.{q}"
+            for q in (
+                "mean_error_m",
+                "rmse_m",
+                "convergence_iteration",
+                "time_per_node_iteration_s",
+                "time_to_convergence_s",
+                "outage_1m",
+            )
+        ]
+        assert ser[f"{m}.mean_error_m"].shape == (3,)
+        out = ser[f"{m}.outage"]
+        assert np.all(np.diff(out) <= 0) and 0 <= out[-1] <= out[0] <= 1
+    for ns in (20, 40):
+        expected += [f"poa_nbp.ns{ns}.{q}" for q in ("mean_error_m", "outage_1m")]
+    missing = [n for n in expected if n not in f]
+    assert not missing, missing
+    assert all(math.isfinite(f[n]) for n in expected)
+    for m in meta["methods"]:
+        assert 1 <= f[f"{m}.convergence_iteration"] <= 3
+        # RMSE >= mean error (Cauchy–Schwarz) and the outage is a fraction
+        assert f[f"{m}.rmse_m"] >= f[f"{m}.mean_error_m"] - 1e-12
+        assert 0.0 <= f[f"{m}.outage_1m"] <= 1.0
+
+
+def test_polygons_contain_every_agent_and_shrink(tiny):
+    """Non-negative (exponential) ranging errors: every polygon contains its agent (POA
+    Theorem 1), and more iterations or edges never enlarge the mean area."""
+    f = tiny["figures"]
+    assert f["poa.containment_fraction"] == 1.0
+    assert f["poa.ne4.containment_fraction"] == 1.0
+    assert f["poa.ne16.containment_fraction"] == 1.0
+    assert f["poa.dropped_fraction"] == 0.0
+    for ne in (4, 16):
+        a = [f[f"poa.ne{ne}.area_it{it}_m2"] for it in (1, 2, 3)]
+        assert a[0] >= a[1] >= a[2] > 0
+    # a 16-gon circumscribes each anchor disk more tightly than a square
+    assert f["poa.ne16.area_it1_m2"] < f["poa.ne4.area_it1_m2"]
+
+
+def test_convergence_from_curve():
+    curve = [10.0, 5.0, 2.0, 1.05, 1.0, 1.02]
+    assert se.convergence_from_curve(curve, 0.05, 0.01) == 4  # |1.05 - 1.02| <= 0.051
+    assert se.convergence_from_curve(curve, 0.01, 0.001) == 6  # |1.0 - 1.02| > 0.0102
+    assert se.convergence_from_curve([3.0, 3.0], 0.05, 0.01) == 1
+    # a late excursion resets convergence
+    assert se.convergence_from_curve([5.0, 1.0, 1.0, 3.0, 1.0], 0.05, 0.01) == 5
+
+
+def test_ellipse_region_is_uniform():
+    """Uniform samples in an ellipse {x: xᵀΣ⁻¹x <= 1}: all inside, mean = centre, covariance
+    = Σ/4 (closed form), area = π sqrt(det Σ)."""
+    shape = np.array([[9.0, 2.0], [2.0, 4.0]])
+    e = se._EllipseRegion([1.0, -2.0], shape)
+    assert e.area == pytest.approx(math.pi * math.sqrt(np.linalg.det(shape)))
+    x = e.sample_uniform(200_000, np.random.default_rng(0))
+    assert e.contains(x).all()
+    np.testing.assert_allclose(x.mean(axis=0), [1.0, -2.0], atol=0.02)
+    np.testing.assert_allclose(np.cov(x.T), shape / 4, atol=0.03)
+    assert not e.contains(np.array([[1.0 + 3.1, -2.0]]))[0]
+    flat = se._EllipseRegion([0.0, 0.0], np.zeros((2, 2)))
+    assert flat.area == 0.0 and not flat.contains(np.zeros((1, 2)))[0]
+
+
+def test_same_results_with_one_and_two_workers(tiny):
+    two = se.run(load_recipe(TINY), workers=2, progress=False)
+    names = [n for n in tiny["figures"] if not se.is_timing(n)]
+    assert names == [n for n in two["figures"] if not se.is_timing(n)]
+    assert "poa_nbp.mean_error_m" in names and "poa.time_per_node_s" not in names
+    for n in names:
+        assert tiny["figures"][n] == two["figures"][n], n
+    for n, x in tiny["series"].items():
+        np.testing.assert_array_equal(x, two["series"][n], err_msg=n)
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        (("topologies = 2", "topologis = 2"), "experiment.topologis"),
+        (('"pbp", "wls"]', '"pbp", "lws"]'), "experiment.methods"),
+        (('bandwidth = "silverman"', 'proposal = "mixture"'), "localization.nbp.proposal"),
+        (('bandwidth = "silverman"', 'bandwith = "silverman"'), "localization.nbp.bandwith"),
+        (("n_samples = 40", "n_samples = 1"), "experiment.n_samples"),
+        (('sample_methods = ["poa_nbp"]', 'sample_methods = ["wls"]'), "experiment.sample_methods"),
+    ],
+)
+def test_recipe_errors_name_the_key(edit, key):
+    recipe = load_recipe(TINY.replace(*edit))
+    with pytest.raises(ValidationError) as exc:
+        se.run(recipe, progress=False)
+    assert exc.value.field == key
+
+
+def test_shipped_recipe_validates():
+    recipe = load_recipe(DATASETS / "poa_nbp.toml")
+    exp = se.StaticExperimentSpec.from_dict(recipe.section("experiment"))
+    assert exp.topologies == 200 and exp.n_agents == 100 and exp.poa_n_edges == 16
+    fast = se.StaticExperimentSpec.from_dict(recipe.section("experiment"), fast=True)
+    assert fast.topologies < exp.topologies
+    se.method_options(recipe.section("localization"), exp)
+
+
+def test_cli_evaluate_static(tmp_path, capsys):
+    path = tmp_path / "tiny.toml"
+    path.write_text(
+        TINY.replace("topologies = 2", "topologies = 1").replace(
+            '"poa_nbp", "nbp_ellipse", "nbp_min_entropy", "pbp", "wls"', '"poa_nbp", "wls"'
+        )
+    )
+    out = tmp_path / "out"
+    assert main(["evaluate", str(path), "--out", str(out), "--no-progress"]) == 0
+    text = capsys.readouterr().out
+    assert "POA-NBP" in text and "WLS" in text and "containment 1.0000" in text
+    assert (out / "results.json").exists() and (out / "tiny_static.png").stat().st_size > 10_000
+    # nothing already written is overwritten
+    assert main(["evaluate", str(path), "--out", str(out), "--no-progress"]) != 0
