@@ -35,6 +35,7 @@ BENCHMARKS = {
     "dipnet": "phyloc.benchmarks.bench_dipnet",
     "datasets": "phyloc.benchmarks.bench_datasets",
     "pfbp": "phyloc.benchmarks.bench_pfbp",
+    "nbp": "phyloc.benchmarks.bench_nbp",
 }
 
 

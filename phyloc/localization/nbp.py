@@ -62,7 +62,7 @@ module is self-contained. Measured in the §V network (≈ 12.5 links per agent,
 2-core machine): ≈ 3 / 5 / 10 / 24 ms per agent and iteration at N_S = 100 / 200 / 400 /
 800 with the polygon proposal — at these sizes the O(N_S) per-message work and the capped
 LSCV weigh as much as the quadratic KDE, which itself grows as N_S² (≈ 0.2 / 0.9 / 4.6 ms for
-10 messages at N_S = 100 / 200 / 400, 35–40× faster than the NumPy twin).
+10 messages at N_S = 100 / 200 / 400, 20–40× faster than the NumPy twin, depending on the load).
 
 Polygons: any object with ``.area`` [m²], ``.contains(points [n, 2]) -> bool [n]`` and
 ``.sample_uniform(n, rng) -> [n, 2]`` (e.g. :class:`phyloc.localization.polygons.ConvexPolygon`);
