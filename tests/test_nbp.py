@@ -505,3 +505,22 @@ def test_invalid_inputs_name_the_field(rng):
         GaussianBPOptions(n_inner=0)
     with pytest.raises(ValidationError, match=r"localization\.n_sample"):
         NBPOptions.from_dict({"n_sample": 10})
+
+
+def test_logsumexp_matches_scipy():
+    from scipy.special import logsumexp as ref
+
+    from phyloc.localization.nbp import logsumexp
+
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(3, 4, 50)) * 300.0
+    a[0, 1, :] = -np.inf  # an all-zero-weight row
+    a[1, 2, 5] = -np.inf
+    for axis in (None, 0, 2, -1):
+        for keep in (False, True):
+            with np.errstate(divide="ignore"):
+                np.testing.assert_allclose(
+                    logsumexp(a, axis=axis, keepdims=keep),
+                    ref(a, axis=axis, keepdims=keep),
+                    rtol=1e-12,
+                )
