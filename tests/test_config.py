@@ -45,3 +45,43 @@ def test_missing_file_and_bad_toml(tmp_path):
     bad.write_text("kind = \n")
     with pytest.raises(RecipeError, match=r"bad\.toml: invalid TOML"):
         load_recipe(bad)
+
+
+def _shipped_recipes():
+    from pathlib import Path
+
+    return sorted((Path(__file__).resolve().parents[1] / "datasets").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", _shipped_recipes(), ids=lambda p: p.name)
+def test_every_shipped_recipe_validates(path):
+    """Each recipe in datasets/ loads, and its experiment (full and fast) and localization
+    sections pass the consumers' checks — a typo in a shipped recipe fails here, not after
+    hours of work."""
+    import importlib
+
+    from phyloc.cli import EXPERIMENTS
+
+    recipe = load_recipe(path)
+    if recipe.kind == "dataset":
+        return
+    mod = importlib.import_module(EXPERIMENTS[recipe.kind])
+    spec_cls = {
+        "ranging": "RangingExperimentSpec",
+        "localization": "LocalizationExperimentSpec",
+        "tracking": "TrackingExperimentSpec",
+        "static": "StaticExperimentSpec",
+    }[recipe.kind]
+    cls = getattr(mod, spec_cls, None)
+    if cls is None:
+        pytest.skip(f"{mod.__name__} has no {spec_cls}")
+    for fast in (False, True):
+        exp = cls.from_dict(recipe.section("experiment"), fast=fast)
+        if hasattr(mod, "method_options"):
+            mod.method_options(recipe.section("localization"), exp)
+    if recipe.kind == "localization":
+        recipe.section("localization", mod.LocalizationSpec)
+    if "ranging" in recipe.sections:
+        from phyloc.evaluation.ranging_experiment import RangingSpec
+
+        recipe.section("ranging", RangingSpec)
