@@ -15,11 +15,21 @@ steps of one run after a warm-up run (JIT compilation). Figures (names are the i
 ``sirbp_over_pfbp.step_ratio``            SIR-BP time / PF-BP time per step
 ``spbp.s1_rinf.step_s``                   sigma-point BP per time step [s]
 ``spbp.s1_rinf.agent_s``                  ... per agent [s]
+``<m>.s2_r18.step_s``, ``<m>.s2_r18.agent_s``   the same for Scenario II (20 agents,
+                                          r_max = 18 m; ``m`` in pfbp, edh, sirbp, spbp; SIR-BP
+                                          with ``sirbp.n_particles``), Table II
+``sirbp_over_pfbp.s2_r18.step_ratio``     SIR-BP time / PF-BP time per step in Scenario II
+
+Everything runs with one BLAS thread (as the experiment runner does): the matrices are small, and
+OpenBLAS threads on a busy machine made a Scenario II step up to 10x slower.
 """
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from phyloc.localization.edh import run_edh
 from phyloc.localization.pfbp import PFBPOptions, run_pfbp
@@ -40,11 +50,14 @@ N_LAMBDA = 20
 N_ITER = 2
 
 
-def make_scenario(n_steps=5, seed=0):
-    """Scenario I realization and its eq. (31) prior."""
+def make_scenario(n_steps=5, seed=0, n_agents=N_AGENTS, comm_range_m=None):
+    """Scenario I (or, with 20 agents and r_max = 18 m, II) realization and its eq. (31) prior."""
     rng = np.random.default_rng(seed)
-    net = make_network(scenario_network_spec(N_AGENTS, n_steps), rng)
-    sc = simulate_scenario(net, RangeModel(), rng)
+    spec = scenario_network_spec(n_agents, n_steps)
+    if comm_range_m is not None:
+        spec = dataclasses.replace(spec, comm_range_m=comm_range_m)
+    net = make_network(spec, rng)
+    sc = simulate_scenario(net, RangeModel(), rng, comm_range_m=comm_range_m)
     mean, cov = paper_prior(sc, rng)
     return sc, mean, cov
 
@@ -83,6 +96,36 @@ class TimeSPBPStep:
 
 def report(quick: bool = False) -> dict[str, float]:
     """Measure every figure of the module docstring; ``quick`` shortens the runs."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        fig = _report_s1(quick)
+        fig.update(_report_s2(quick))
+    return fig
+
+
+def _report_s2(quick: bool) -> dict[str, float]:
+    """Scenario II (20 agents, r_max = 18 m): time per step and per agent (Table II)."""
+    n_sir = 10_000 if quick else 100_000
+    sc, mean, cov = make_scenario(1 if quick else 2, seed=1, n_agents=20, comm_range_m=18.0)
+    opt = PFBPOptions(n_particles=N_PARTICLES, n_lambda=N_LAMBDA, n_iterations=N_ITER)
+    fig: dict[str, float] = {}
+    runs = {
+        "pfbp": (run_pfbp, opt),
+        "edh": (run_edh, opt),
+        "sirbp": (run_sirbp, SIRBPOptions(n_particles=n_sir, n_iterations=N_ITER)),
+        "spbp": (run_spbp, SPBPOptions(n_iterations=N_ITER)),
+    }
+    for name, (fn, o) in runs.items():
+        step, agent = _median_step(fn, sc, mean, cov, o)
+        fig[f"{name}.s2_r18.step_s"] = step
+        if name != "edh":
+            fig[f"{name}.s2_r18.agent_s"] = agent
+    fig["sirbp_over_pfbp.s2_r18.step_ratio"] = (
+        fig["sirbp.s2_r18.step_s"] / fig["pfbp.s2_r18.step_s"]
+    )
+    return fig
+
+
+def _report_s1(quick: bool) -> dict[str, float]:
     n_steps = 3 if quick else 10
     n_sir = 10_000 if quick else 100_000
     sc, mean, cov = make_scenario(n_steps)
@@ -125,8 +168,18 @@ def summarize(fig: dict) -> str:
         ("SP-BP", fig["spbp.s1_rinf.step_s"], fig["spbp.s1_rinf.agent_s"]),
     ]
     table = format_table(rows, ["Scenario I, r_max = inf", "step [s]", "per agent [s]"])
+    rows2 = [
+        (label, fig[f"{m}.s2_r18.step_s"], fig.get(f"{m}.s2_r18.agent_s"))
+        for m, label in (
+            ("pfbp", "PF-BP"),
+            ("edh", "EDH (joint)"),
+            ("sirbp", f"SIR-BP ({int(fig['sirbp.n_particles'])} particles)"),
+            ("spbp", "SP-BP"),
+        )
+    ]
+    table2 = format_table(rows2, ["Scenario II, r_max = 18 m", "step [s]", "per agent [s]"])
     return (
-        f"{table}\n"
+        f"{table}\n{table2}\n"
         f"PF-BP particles x lambda-steps per s: {fig['pfbp.particle_flow_steps_per_s']:.4g}; "
         f"flow kernel speed-up vs NumPy: {fig['pfbp.flow_kernel.speedup_vs_numpy']:.3g}; "
         f"SIR-BP / PF-BP per step: {fig['sirbp_over_pfbp.step_ratio']:.3g}"
