@@ -140,6 +140,8 @@ def test_same_results_with_one_and_two_workers():
         ),
         (("comm_range_m = 18.0", "comm_range = 18.0"), False, "experiment.scenarios.s1.comm_range"),
         (('"edh"]', '"ekf"]'), False, "experiment.methods"),
+        (("runs = 2", 'runs = 2\nsage_sigma_m = "mad"'), False, "experiment.sage_sigma_m"),
+        (("runs = 2", "runs = 2\nsage_sigma_m = -1.0"), False, "experiment.sage_sigma_m"),
         (("[localization.edh]", "[localization.ed]"), False, "localization.ed"),
         (
             ("[localization.pfbp]", "[experiment.fast]\nrun = 1\n\n[localization.pfbp]"),
@@ -170,3 +172,28 @@ def test_sage_measurements_on_c2_waveforms():
     assert 0.0 < f["sage.c2.valid_fraction"] <= 1.0
     assert f["sage.c2.range_rmse_m"] > 0 and f["sage.c2.sigma_m"] > 0
     assert math.isfinite(f["pfbp.c2.k4.rmse_p_m"]) and math.isfinite(f["pcrlb.c2.k4.p_m"])
+
+
+def test_residual_sigma_is_the_range_noise_scale():
+    """The truth-free σ of SAGE ranges (``sage_sigma_m = "residual"``): the RMS residual of the
+    MDS/SMACOF fit is ~0 for exact ranges and of the order of the noise for noisy ones (a bit
+    below it: the fit absorbs 2 degrees of freedom per agent)."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(4)
+    n_ag, anchors = 10, np.array([[0.0, 0.0], [50.0, 0.0], [0.0, 50.0], [50.0, 50.0]])
+    pos = np.vstack([rng.uniform(0, 50, (n_ag, 2)), anchors])
+    is_anchor = np.r_[np.zeros(n_ag, bool), np.ones(4, bool)]
+    net = SimpleNamespace(
+        n_nodes=pos.shape[0],
+        is_anchor=is_anchor,
+        positions=pos[None],
+        anchor_index=np.flatnonzero(is_anchor),
+    )
+    u, w = np.nonzero(~np.eye(pos.shape[0], dtype=bool) & ~is_anchor[:, None])
+    links = np.stack([u, w], axis=1)
+    d = np.linalg.norm(pos[u] - pos[w], axis=1)
+    assert te._residual_sigma(net, (links, d), dim=2) < 1e-3
+    sigma = te._residual_sigma(net, (links, d + rng.normal(0, 0.5, d.size)), dim=2)
+    assert 0.25 < sigma < 0.5
+    assert te._residual_sigma(net, None, dim=2) is None

@@ -34,8 +34,14 @@ Measurements (``experiment.measurements``)
                     and received signals of every snapshot; at every time step SAGE
                     (``[ranging]``, ``[ranging.sage]``) estimates the range of each link an
                     agent receives; invalid links are NaN (no measurement). The trackers use one
-                    σ per realization: ``sage_sigma_m`` or, when omitted, the root of the median
-                    estimator variance over the valid links. The PCRLB is that of the Gaussian
+                    σ per realization, by ``sage_sigma_m``: a number [m]; ``"zzb"``, the root of
+                    the median estimator (ZZB) variance over the valid links — a LOS noise level,
+                    overconfident by two orders of magnitude when NLOS links are biased by tens
+                    of metres; or ``"residual"`` (default), truth-free and honest about outliers:
+                    the RMS range residual of the coarse MDS/SMACOF fit (anchors fixing the
+                    frame, :func:`~phyloc.localization.initialization.coarse_positions`) of the
+                    first snapshot's valid ranges (``"zzb"`` where that range graph is
+                    disconnected). The PCRLB is that of the Gaussian
                     model at ``sigma_r`` on the valid links (it knows no NLOS bias).
 
 Figures (``results.json``; ``<m>`` a method, ``<s>`` a scenario token, ``<k>`` a time step of
@@ -103,6 +109,7 @@ from phyloc.phy.system import check_keys
 
 METHODS = ("pfbp", "pfbp_reg", "sirbp", "spbp", "edh")
 MEASUREMENTS = ("gaussian", "sage")
+SAGE_SIGMA_RULES = ("residual", "zzb")
 _OPTIONS = {
     "pfbp": PFBPOptions,
     "pfbp_reg": PFBPOptions,
@@ -152,8 +159,8 @@ class TrackingExperimentSpec:
         Thresholds of the scalar outage figures [m].
     measurements : {"gaussian", "sage"}
         See the module docstring.
-    sage_sigma_m : float, optional
-        σ given to the trackers with ``"sage"`` measurements (default: from the estimator).
+    sage_sigma_m : float or {"residual", "zzb"}
+        σ given to the trackers with ``"sage"`` measurements (see the module docstring).
     method_options : dict
         ``{method: {key: value}}`` overriding ``[localization.<method>]`` keys.
     """
@@ -179,7 +186,7 @@ class TrackingExperimentSpec:
     outage_steps: tuple = (1, 20, 40)
     outage_thresholds_m: tuple = (0.1, 0.3, 1.0)
     measurements: str = "gaussian"
-    sage_sigma_m: float | None = None
+    sage_sigma_m: float | str = "residual"
     method_options: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -231,7 +238,13 @@ class TrackingExperimentSpec:
             raise ValidationError(
                 "experiment.measurements", self.measurements, f"one of {MEASUREMENTS}"
             )
-        if self.sage_sigma_m is not None:
+        if not (isinstance(self.sage_sigma_m, str) and self.sage_sigma_m in SAGE_SIGMA_RULES):
+            if isinstance(self.sage_sigma_m, str):
+                raise ValidationError(
+                    "experiment.sage_sigma_m",
+                    self.sage_sigma_m,
+                    f"a number [m] or one of {', '.join(SAGE_SIGMA_RULES)}",
+                )
             v.positive("experiment.sage_sigma_m", self.sage_sigma_m)
         if not isinstance(self.method_options, dict):
             raise ValidationError(
@@ -318,6 +331,7 @@ def _sage_scenario(exp, scen, system, chan, rspec, rng):
     K = exp.n_steps
     z = np.full((K, agents.size, net.n_nodes), np.nan)
     err, var, n_links = [], [], 0
+    first = None  # (links, ranges) of the first snapshot with valid estimates
     for k in range(1, K + 1):
         lk = real.links[k]
         rx_agent = ~net.is_anchor[lk[:, 0]]
@@ -333,6 +347,8 @@ def _sage_scenario(exp, scen, system, chan, rspec, rng):
         ok = np.asarray(est.valid, bool)
         z[k - 1, col[lk[ok, 0]], col[lk[ok, 1]]] = rng_m[ok]
         err.append((rng_m - net.distances(k)[rx_agent])[ok])
+        if first is None:
+            first = (lk[ok], rng_m[ok])
         var.append(est.variance_m2[ok] / real.ways**2)
     states = network_states(net, model)[: K + 1]
     sc = RangeScenario(
@@ -345,8 +361,12 @@ def _sage_scenario(exp, scen, system, chan, rspec, rng):
     )
     err, var = np.concatenate(err), np.concatenate(var)
     sigma = exp.sage_sigma_m
-    if sigma is None:
-        sigma = math.sqrt(float(np.median(var))) if var.size else exp.sigma_r
+    zzb = math.sqrt(float(np.median(var))) if var.size else exp.sigma_r
+    if sigma == "residual":
+        sigma = _residual_sigma(net, first, dim=exp.dim)
+        sigma = zzb if sigma is None else max(sigma, zzb)
+    elif sigma == "zzb":
+        sigma = zzb
     info = {
         "sq_err_sum": float(np.sum(err**2)),
         "n_valid": int(err.size),
@@ -354,6 +374,28 @@ def _sage_scenario(exp, scen, system, chan, rspec, rng):
         "sigma_m": float(sigma),
     }
     return sc, info
+
+
+def _residual_sigma(net, first, *, dim):
+    """RMS range residual [m] of the coarse MDS/SMACOF fit of one snapshot's ranges (anchors
+    fixing the frame); truth-free. ``None`` without ranges or for a disconnected graph."""
+    from phyloc.localization.initialization import coarse_positions
+
+    if first is None or first[0].shape[0] == 0:
+        return None
+    links, ranges = first
+    try:
+        sol = coarse_positions(
+            links,
+            ranges,
+            net.n_nodes,
+            dim,
+            is_anchor=net.is_anchor,
+            anchor_positions=net.positions[0, net.anchor_index],
+        )
+    except ValidationError:
+        return None
+    return float(sol.residual_rms_m)
 
 
 def _task(payload, seed_seq):
