@@ -48,6 +48,7 @@ def test_every_documented_figure_is_there(tiny):
         "poa.containment_fraction",
         "poa.time_per_node_s",
         "poa.dropped_fraction",
+        "poa.rejection_acceptance_rate",
         "poa_nbp_vs_nbp_min_entropy.time_to_convergence_ratio",
         "poa_nbp_vs_nbp_ellipse.time_to_convergence_ratio",
     ]
@@ -94,6 +95,7 @@ def test_polygons_contain_every_agent_and_shrink(tiny):
     for ne in (4, 16):
         a = [f[f"poa.ne{ne}.area_it{it}_m2"] for it in (1, 2, 3)]
         assert a[0] >= a[1] >= a[2] > 0
+    assert 0.0 < f["poa.rejection_acceptance_rate"] <= 1.0
     # a 16-gon circumscribes each anchor disk more tightly than a square
     assert f["poa.ne16.area_it1_m2"] < f["poa.ne4.area_it1_m2"]
 
