@@ -64,6 +64,7 @@ def test_every_documented_figure_is_there(tiny):
                 "mean_error_m",
                 "rmse_m",
                 "convergence_iteration",
+                "settling_iteration",
                 "time_per_node_iteration_s",
                 "time_to_convergence_s",
                 "outage_1m",
@@ -78,7 +79,7 @@ def test_every_documented_figure_is_there(tiny):
     assert not missing, missing
     assert all(math.isfinite(f[n]) for n in expected)
     for m in meta["methods"]:
-        assert 1 <= f[f"{m}.convergence_iteration"] <= 3
+        assert 1 <= f[f"{m}.settling_iteration"] <= 3 and f[f"{m}.convergence_iteration"] <= 3
         # RMSE >= mean error (Cauchy–Schwarz) and the outage is a fraction
         assert f[f"{m}.rmse_m"] >= f[f"{m}.mean_error_m"] - 1e-12
         assert 0.0 <= f[f"{m}.outage_1m"] <= 1.0
@@ -100,13 +101,22 @@ def test_polygons_contain_every_agent_and_shrink(tiny):
     assert f["poa.ne16.area_it1_m2"] < f["poa.ne4.area_it1_m2"]
 
 
-def test_convergence_from_curve():
+def test_convergence_and_settling_from_curve():
     curve = [10.0, 5.0, 2.0, 1.05, 1.0, 1.02]
-    assert se.convergence_from_curve(curve, 0.05, 0.01) == 4  # |1.05 - 1.02| <= 0.051
-    assert se.convergence_from_curve(curve, 0.01, 0.001) == 6  # |1.0 - 1.02| > 0.0102
+    # paper's rule: the first small successive change (1.05 -> 1.0: 4.8 % <= 5 %) means
+    # converged after iteration 4
+    assert se.convergence_from_curve(curve, 0.05, 0.01) == 4
+    assert se.convergence_from_curve(curve, 0.01, 0.001) == 6  # every change > 1 %
+    assert se.convergence_from_curve(curve, 0.6, 0.0) == 1  # 10 -> 5 is within 60 %
     assert se.convergence_from_curve([3.0, 3.0], 0.05, 0.01) == 1
-    # a late excursion resets convergence
-    assert se.convergence_from_curve([5.0, 1.0, 1.0, 3.0, 1.0], 0.05, 0.01) == 5
+    # settling: stays within the band around the final value from then on
+    assert se.settling_from_curve(curve, 0.05, 0.01) == 4  # |1.05 - 1.02| <= 0.051
+    assert se.settling_from_curve(curve, 0.01, 0.001) == 6  # |1.0 - 1.02| > 0.0102
+    assert se.settling_from_curve([3.0, 3.0], 0.05, 0.01) == 1
+    # a late excursion resets settling but not the paper's rule
+    late = [5.0, 1.0, 1.0, 3.0, 1.0]
+    assert se.settling_from_curve(late, 0.05, 0.01) == 5
+    assert se.convergence_from_curve(late, 0.05, 0.01) == 2
 
 
 def test_ellipse_region_is_uniform():
