@@ -81,6 +81,13 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
 from phyloc.localization import _kernels as K
+from phyloc.localization._nbp_kernels import (
+    LSCV_GRID,
+    kde_logpdf_kernel,
+    kde_logpdf_numpy,
+    lscv_grid_kernel,
+    lscv_grid_numpy,
+)
 from phyloc.localization.static_ranges import (
     LINK_MODES,
     RangeError,
@@ -98,13 +105,6 @@ PROPOSALS = ("min_entropy", "mixture", "parsimonious", "polygon")
 #: Bandwidth rules (or a float in metres).
 BANDWIDTH_RULES = ("lscv", "silverman")
 BACKENDS = ("numba", "numpy")
-from phyloc.localization._nbp_kernels import (  # noqa: E402  (kernels live in a private module)
-    LSCV_GRID,
-    kde_logpdf_kernel,
-    kde_logpdf_numpy,
-    lscv_grid_kernel,
-    lscv_grid_numpy,
-)
 
 
 def _choice(name, value, allowed):
