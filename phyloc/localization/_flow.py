@@ -136,22 +136,65 @@ def range_flow_numpy(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flow
 
 
 @njit(cache=True)
+def _apply_h(U, off_a, off_b, v, out):
+    """``out = H v`` for the sparse range Jacobian (row ``q``: ``+u_q`` at ``off_a[q]``,
+    ``−u_q`` at ``off_b[q]`` unless an anchor)."""
+    L, dim = U.shape
+    for q in range(L):
+        a = off_a[q]
+        b = off_b[q]
+        acc = 0.0
+        for c in range(dim):
+            d = v[a + c] - (v[b + c] if b >= 0 else 0.0)
+            acc += U[q, c] * d
+        out[q] = acc
+
+
+@njit(cache=True)
+def _chol_solve(C, B):
+    """``S^{-1} B`` for ``S = C Cᵀ`` (``C`` lower triangular), ``B [L, k]``: forward and back
+    substitution, column by column."""
+    L, k = B.shape
+    Y = np.empty((L, k))
+    for j in range(k):
+        for i in range(L):
+            acc = B[i, j]
+            for t in range(i):
+                acc -= C[i, t] * Y[t, j]
+            Y[i, j] = acc / C[i, i]
+        for i in range(L - 1, -1, -1):
+            acc = Y[i, j]
+            for t in range(i + 1, L):
+                acc -= C[t, i] * Y[t, j]
+            Y[i, j] = acc / C[i, i]
+    return Y
+
+
+@njit(cache=True)
 def range_flow_kernel(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flow, lambdas, steps):
     """EDH flow of range measurements, in place on ``X [M, n]`` and ``mean [n]``.
 
     Linearizes at the flowing mean before every step; moves components ``0 … n_flow−1``.
+    The Jacobian ``H`` of ranges has at most ``2·dim`` non-zeros per row, so nothing of size
+    ``n × n`` is formed: with ``T = −½ (P Hᵀ)_{[:n_flow]} S^{-1}`` (``S = λ H P Hᵀ + R``) the
+    drift of the moving components is ``A_f x = T (H x)``, and ``A v = −½ P Hᵀ S^{-1} H v`` for
+    the vectors of ``b(λ)``. Per λ-step this costs ``O(n·L·dim + L³ + M·L·(dim + n_flow))``
+    instead of the dense ``O(n²·L + M·n_flow·n)`` of the NumPy twin
+    (:func:`range_flow_numpy`), which it equals to rounding.
     """
     M, n = X.shape
     L = z.size
     m0 = mean.copy()
-    H = np.zeros((L, n))
+    U = np.zeros((L, dim))
     e = np.empty(L)
+    PHt = np.empty((n, L))
     S = np.empty((L, L))
+    hv = np.empty(L)
+    tmp = np.empty(n_flow)
     for s in range(lambdas.size):
         lam = lambdas[s]
         dl = steps[s]
-        H[:, :] = 0.0
-        for q in range(L):
+        for q in range(L):  # linearize at the flowing mean
             a = off_a[q]
             b = off_b[q]
             d2 = 0.0
@@ -160,44 +203,101 @@ def range_flow_kernel(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flo
                 diff = mean[a + c] - pb
                 d2 += diff * diff
             d = np.sqrt(d2)
-            if d > 1e-9:
-                for c in range(dim):
-                    pb = mean[b + c] if b >= 0 else anchor_pos[q, c]
-                    u = (mean[a + c] - pb) / d
-                    H[q, a + c] += u
-                    if b >= 0:
-                        H[q, b + c] -= u
             hx = 0.0
-            for j in range(n):
-                hx += H[q, j] * mean[j]
+            for c in range(dim):
+                if d > 1e-9:
+                    pb = mean[b + c] if b >= 0 else anchor_pos[q, c]
+                    U[q, c] = (mean[a + c] - pb) / d
+                else:
+                    U[q, c] = 0.0
+                hx += U[q, c] * (mean[a + c] - (mean[b + c] if b >= 0 else 0.0))
             e[q] = d - hx
-        PHt = P @ H.T
-        HPHt = H @ PHt
-        for i in range(L):
-            for j in range(L):
-                S[i, j] = lam * HPHt[i, j]
-            S[i, i] += r_var[i]
-        A = -0.5 * (PHt @ np.linalg.solve(S, H))
+        for q in range(L):  # P Hᵀ, column by column from the sparse rows of H
+            a = off_a[q]
+            b = off_b[q]
+            for i in range(n):
+                acc = 0.0
+                for c in range(dim):
+                    acc += U[q, c] * (P[i, a + c] - (P[i, b + c] if b >= 0 else 0.0))
+                PHt[i, q] = acc
+        for q1 in range(L):  # S = λ H P Hᵀ + R
+            a = off_a[q1]
+            b = off_b[q1]
+            for q2 in range(L):
+                acc = 0.0
+                for c in range(dim):
+                    acc += U[q1, c] * (PHt[a + c, q2] - (PHt[b + c, q2] if b >= 0 else 0.0))
+                S[q1, q2] = lam * acc
+            S[q1, q1] += r_var[q1]
+        # T = −½ S^{-1} (P Hᵀ)_{[:n_flow]}ᵀ  ([L, n_flow]; S is symmetric)
+        # many measurements (the joint EDH): move particles by A_f = T H formed once (LAPACK
+        # solve); few (PF-BP): one Cholesky factorization and A_f x = T (H x)
+        joint = L * (2 * dim + n_flow) >= n_flow * n
         r = np.empty(L)
         for q in range(L):
             r[q] = (z[q] - e[q]) / r_var[q]
         g = PHt @ r
-        vv = g + lam * (A @ g) + A @ m0
-        bb = vv + 2.0 * lam * (A @ vv)
-        Af = np.ascontiguousarray(A[:n_flow])
-        tmp = np.empty(n_flow)
-        for m in range(M):
-            for i in range(n_flow):
-                acc = bb[i]
-                for j in range(n):
-                    acc += Af[i, j] * X[m, j]
-                tmp[i] = acc
-            for i in range(n_flow):
-                X[m, i] += dl * tmp[i]
+        if joint:
+            T = -0.5 * np.linalg.solve(S, np.ascontiguousarray(PHt[:n_flow].T))
+            Af = np.zeros((n_flow, n))
+            for q in range(L):
+                a = off_a[q]
+                b = off_b[q]
+                for i in range(n_flow):
+                    t = T[q, i]
+                    for c in range(dim):
+                        Af[i, a + c] += t * U[q, c]
+                        if b >= 0:
+                            Af[i, b + c] -= t * U[q, c]
+        else:
+            C = np.linalg.cholesky(S)
+            T = -0.5 * _chol_solve(C, np.ascontiguousarray(PHt[:n_flow].T))
+            Af = np.zeros((0, 0))
+        bb = np.empty(n_flow)
+        if joint and n_flow == n:  # A = A_f: b(λ) by plain products
+            vv = g + lam * (Af @ g) + Af @ m0
+            Avv = Af @ vv
+            for i in range(n):
+                bb[i] = vv[i] + 2.0 * lam * Avv[i]
+        else:  # A v = −½ P Hᵀ S^{-1} H v
+            if joint:
+                C = np.linalg.cholesky(S)
+            _apply_h(U, off_a, off_b, g, hv)
+            Ag = -0.5 * (PHt @ _chol_solve(C, hv.reshape(L, 1))[:, 0])
+            _apply_h(U, off_a, off_b, m0, hv)
+            Am0 = -0.5 * (PHt @ _chol_solve(C, hv.reshape(L, 1))[:, 0])
+            vv = g + lam * Ag + Am0
+            _apply_h(U, off_a, off_b, vv, hv)
+            w = _chol_solve(C, hv.reshape(L, 1))[:, 0]
+            for i in range(n_flow):  # b = vv + 2λ A vv, moving components only
+                acc = 0.0
+                for q in range(L):
+                    acc += PHt[i, q] * w[q]
+                bb[i] = vv[i] - lam * acc
+        if not joint:
+            for m in range(M):
+                _apply_h(U, off_a, off_b, X[m], hv)
+                for i in range(n_flow):
+                    acc = bb[i]
+                    for q in range(L):
+                        acc += T[q, i] * hv[q]
+                    tmp[i] = acc
+                for i in range(n_flow):
+                    X[m, i] += dl * tmp[i]
+        else:
+            for m in range(M):
+                for i in range(n_flow):
+                    acc = bb[i]
+                    for j in range(n):
+                        acc += Af[i, j] * X[m, j]
+                    tmp[i] = acc
+                for i in range(n_flow):
+                    X[m, i] += dl * tmp[i]
+        _apply_h(U, off_a, off_b, mean, hv)
         for i in range(n_flow):
             acc = bb[i]
-            for j in range(n):
-                acc += Af[i, j] * mean[j]
+            for q in range(L):
+                acc += T[q, i] * hv[q]
             tmp[i] = acc
         for i in range(n_flow):
             mean[i] += dl * tmp[i]
