@@ -263,12 +263,12 @@ def range_flow_kernel(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flo
             if joint:
                 C = np.linalg.cholesky(S)
             _apply_h(U, off_a, off_b, g, hv)
-            Ag = -0.5 * (PHt @ _chol_solve(C, hv.reshape(L, 1))[:, 0])
+            Ag = -0.5 * (PHt @ np.ascontiguousarray(_chol_solve(C, hv.reshape(L, 1))[:, 0]))
             _apply_h(U, off_a, off_b, m0, hv)
-            Am0 = -0.5 * (PHt @ _chol_solve(C, hv.reshape(L, 1))[:, 0])
+            Am0 = -0.5 * (PHt @ np.ascontiguousarray(_chol_solve(C, hv.reshape(L, 1))[:, 0]))
             vv = g + lam * Ag + Am0
             _apply_h(U, off_a, off_b, vv, hv)
-            w = _chol_solve(C, hv.reshape(L, 1))[:, 0]
+            w = np.ascontiguousarray(_chol_solve(C, hv.reshape(L, 1))[:, 0])
             for i in range(n_flow):  # b = vv + 2λ A vv, moving components only
                 acc = 0.0
                 for q in range(L):
