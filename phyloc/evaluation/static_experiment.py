@@ -363,23 +363,15 @@ def _task(payload, seed_seq):
     if exp.ellipses:
         import time
 
-        ell = ellipse_outer_approximation(
-            sc.positions,
-            sc.ranges,
-            sc.is_anchor,
-            n_iterations=exp.poa_iterations,
-            region=sc.region,
-        )
-        out["ellipse|area"] = ell.area_history
+        def ellipses(n_iterations):
+            return ellipse_outer_approximation(
+                sc.positions, sc.ranges, sc.is_anchor, n_iterations=n_iterations, region=sc.region
+            )
+
+        out["ellipse|area"] = ellipses(exp.poa_iterations).area_history
         # the proposal ellipses: as many iterations as the proposal polygons (N_FS)
         t0 = time.perf_counter()
-        ell = ellipse_outer_approximation(
-            sc.positions,
-            sc.ranges,
-            sc.is_anchor,
-            n_iterations=exp.poa_n_fs,
-            region=sc.region,
-        )
+        ell = ellipses(exp.poa_n_fs)
         t_ell = (time.perf_counter() - t0) / max(exp.n_agents, 1)
         regions = [
             _EllipseRegion(c, s) if b else None

@@ -151,6 +151,21 @@ def _apply_h(U, off_a, off_b, v, out):
 
 
 @njit(cache=True)
+def _move_sparse(U, off_a, off_b, T, bb, x, dl, hv, tmp):
+    """One Euler step of the moving components of ``x``: ``x_f += Δ (T (H x) + b_f)``
+    (``hv [L]``, ``tmp [n_flow]`` are work arrays)."""
+    _apply_h(U, off_a, off_b, x, hv)
+    n_flow = tmp.size
+    for i in range(n_flow):
+        acc = bb[i]
+        for q in range(hv.size):
+            acc += T[q, i] * hv[q]
+        tmp[i] = acc
+    for i in range(n_flow):
+        x[i] += dl * tmp[i]
+
+
+@njit(cache=True)
 def _chol_solve(C, B):
     """``S^{-1} B`` for ``S = C Cᵀ`` (``C`` lower triangular), ``B [L, k]``: forward and back
     substitution, column by column."""
@@ -276,14 +291,7 @@ def range_flow_kernel(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flo
                 bb[i] = vv[i] - lam * acc
         if not joint:
             for m in range(M):
-                _apply_h(U, off_a, off_b, X[m], hv)
-                for i in range(n_flow):
-                    acc = bb[i]
-                    for q in range(L):
-                        acc += T[q, i] * hv[q]
-                    tmp[i] = acc
-                for i in range(n_flow):
-                    X[m, i] += dl * tmp[i]
+                _move_sparse(U, off_a, off_b, T, bb, X[m], dl, hv, tmp)
         else:
             for m in range(M):
                 for i in range(n_flow):
@@ -293,14 +301,7 @@ def range_flow_kernel(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flo
                     tmp[i] = acc
                 for i in range(n_flow):
                     X[m, i] += dl * tmp[i]
-        _apply_h(U, off_a, off_b, mean, hv)
-        for i in range(n_flow):
-            acc = bb[i]
-            for q in range(L):
-                acc += T[q, i] * hv[q]
-            tmp[i] = acc
-        for i in range(n_flow):
-            mean[i] += dl * tmp[i]
+        _move_sparse(U, off_a, off_b, T, bb, mean, dl, hv, tmp)
 
 
 @njit(cache=True)

@@ -494,6 +494,27 @@ def fan_sample_numpy(v, u):
 # Minimum-volume enclosing ellipse (Löwner–John), the ellipse baseline of Fig. 9
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
+def _weighted_moments(u, X, Y):
+    """Weighted mean ``(cx, cy)`` and second central moments ``(sxx, sxy, syy)`` of the
+    points ``(X_i, Y_i)`` with weights ``u`` (summing to one)."""
+    cx = 0.0
+    cy = 0.0
+    for i in range(X.size):
+        cx += u[i] * X[i]
+        cy += u[i] * Y[i]
+    sxx = 0.0
+    sxy = 0.0
+    syy = 0.0
+    for i in range(X.size):
+        dx = X[i] - cx
+        dy = Y[i] - cy
+        sxx += u[i] * dx * dx
+        sxy += u[i] * dx * dy
+        syy += u[i] * dy * dy
+    return cx, cy, sxx, sxy, syy
+
+
+@njit(cache=True)
 def mvee_kernel(P, eps, max_iter):
     """Minimum-area ellipse enclosing the points ``P`` (``(n, 2)``, not all collinear).
 
@@ -520,24 +541,9 @@ def mvee_kernel(P, eps, max_iter):
     u = np.full(n, 1.0 / n)
     M = np.empty(n)
     it = 0
-    cx = 0.0
-    cy = 0.0
     while it < max_iter:
         it += 1
-        cx = 0.0
-        cy = 0.0
-        for i in range(n):
-            cx += u[i] * X[i]
-            cy += u[i] * Y[i]
-        sxx = 0.0
-        sxy = 0.0
-        syy = 0.0
-        for i in range(n):
-            dx = X[i] - cx
-            dy = Y[i] - cy
-            sxx += u[i] * dx * dx
-            sxy += u[i] * dx * dy
-            syy += u[i] * dy * dy
+        cx, cy, sxx, sxy, syy = _weighted_moments(u, X, Y)
         det = sxx * syy - sxy * sxy
         if det <= 0.0:
             break
@@ -572,20 +578,7 @@ def mvee_kernel(P, eps, max_iter):
             u[jmin] -= beta
             if u[jmin] < 0.0:
                 u[jmin] = 0.0
-    cx = 0.0
-    cy = 0.0
-    for i in range(n):
-        cx += u[i] * X[i]
-        cy += u[i] * Y[i]
-    sxx = 0.0
-    sxy = 0.0
-    syy = 0.0
-    for i in range(n):
-        dx = X[i] - cx
-        dy = Y[i] - cy
-        sxx += u[i] * dx * dx
-        sxy += u[i] * dx * dy
-        syy += u[i] * dy * dy
+    cx, cy, sxx, sxy, syy = _weighted_moments(u, X, Y)
     sig = np.empty((2, 2))
     sig[0, 0] = 2.0 * sxx
     sig[0, 1] = 2.0 * sxy
