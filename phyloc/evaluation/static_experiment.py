@@ -74,6 +74,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -361,7 +362,6 @@ def _task(payload, seed_seq):
     out["poa|dropped"] = (int(prop.dropped.shape[0]), n_meas)
     supports = {"poa_nbp": (list(prop.polygons), out["poa|time_per_node_s"])}
     if exp.ellipses:
-        import time
 
         def ellipses(n_iterations):
             return ellipse_outer_approximation(
@@ -425,8 +425,6 @@ def _run_method(m, sc, opts, n_samples, supports, rng):
 def _mds_start(sc):
     """Truth-free MDS/SMACOF start of the baselines in the anchors' frame, clipped to the
     region; ``(None, 0)`` (heuristic start) when the range graph is disconnected."""
-    import time
-
     from phyloc.localization.initialization import coarse_positions
 
     t0 = time.perf_counter()
