@@ -1,6 +1,6 @@
 """POA / NBP / PBP / WLS benchmarks on the static network of the POA paper (§V-A).
 
-One topology of :func:`~phyloc.localization.static_ranges.paper_static_scenario`: 100 agents
+One topology of :func:`~phyloc.localization.static.static_ranges.paper_static_scenario`: 100 agents
 and 13 anchors in a 100 m × 100 m square, r_com = 20 m, exponential range errors of mean
 0.38 m. POA uses N_E = 16 and N_FS = 2 (§V-B); its polygons are the proposals of POA-NBP.
 NBP runs ``N_ITER`` = 4 iterations (2 with ``quick``) with LSCV bandwidths, after a JIT
@@ -44,14 +44,14 @@ import numba
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from phyloc.localization import _polygon_kernels as PK
-from phyloc.localization.gaussian_bp import (
+from phyloc.localization.static import _polygon_kernels as PK
+from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
     WLSOptions,
     run_gaussian_bp,
     run_wls,
 )
-from phyloc.localization.nbp import (
+from phyloc.localization.static.nbp import (
     NBPOptions,
     kde_logpdf_kernel,
     kde_logpdf_numpy,
@@ -59,8 +59,8 @@ from phyloc.localization.nbp import (
     range_message_samples,
     run_nbp,
 )
-from phyloc.localization.polygons import anchor_polygon, intersect, poa
-from phyloc.localization.static_ranges import ExponentialRangeError, paper_static_scenario
+from phyloc.localization.static.polygons import anchor_polygon, intersect, poa
+from phyloc.localization.static.static_ranges import ExponentialRangeError, paper_static_scenario
 from phyloc.reporting import format_table
 
 try:

@@ -31,16 +31,16 @@ import dataclasses
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from phyloc.localization.edh import run_edh
-from phyloc.localization.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.range_models import (
+from phyloc.localization.tracking.edh import run_edh
+from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
+from phyloc.localization.tracking.range_models import (
     RangeModel,
     paper_prior,
     scenario_network_spec,
     simulate_scenario,
 )
-from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
-from phyloc.localization.spbp import SPBPOptions, run_spbp
+from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
 from phyloc.network import make_network
 from phyloc.reporting import format_table
 

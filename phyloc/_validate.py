@@ -61,3 +61,36 @@ def finite_array(name: str, a, *, dtype=np.float64, ndim: int | None = None) -> 
             name, f"{arr.ravel()[bad]} at flat index {bad}", "every entry must be finite"
         )
     return arr
+
+
+def choice(name: str, value, allowed) -> str:
+    """Return ``value`` if it is one of the strings ``allowed``; else name them all."""
+    if not isinstance(value, str) or value not in allowed:
+        raise ValidationError(name, value, "must be one of " + ", ".join(repr(a) for a in allowed))
+    return value
+
+
+def join(where: str, key: str) -> str:
+    """A field name for messages.
+
+    ``"file.toml:" + "los"`` gives ``"file.toml: los"``; ``"a.b" + "c"`` gives ``"a.b.c"``.
+    """
+    return f"{where} {key}" if where.endswith(":") else f"{where}.{key}"
+
+
+def check_keys(table: dict, allowed, where: str) -> None:
+    """Raise :class:`ValidationError` for the first key of ``table`` not in ``allowed``.
+
+    The message names the key (``where.key``), its value, the closest valid key ("did you
+    mean ...?") and every valid key.
+    """
+    import difflib
+
+    allowed = list(allowed)
+    for key in table:
+        if key not in allowed:
+            close = difflib.get_close_matches(key, allowed, n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise ValidationError(
+                join(where, key), table[key], f"unknown key; {hint}valid keys: {', '.join(allowed)}"
+            )

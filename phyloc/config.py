@@ -24,8 +24,9 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from phyloc._validate import check_keys
 from phyloc.errors import PhylocError, ValidationError
-from phyloc.phy.system import OFDMSystem, check_keys
+from phyloc.phy.system import OFDMSystem
 
 KINDS = ("ranging", "localization", "dataset", "tracking", "static")
 TOP_LEVEL = ("kind", "name", "seed", "description")

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from phyloc.localization.range_models import RangeModel, RangeScenario
+from phyloc.localization.tracking.range_models import RangeModel, RangeScenario
 
 
 def degenerate_scenario(K):

@@ -15,7 +15,7 @@ import phyloc.datasets as pds
 from phyloc.datasets import schema as sc
 from phyloc.datasets.writer import CRASH_ENV
 from phyloc.errors import PhylocError, ValidationError
-from phyloc.evaluation.runner import task_seeds
+from phyloc.parallel import task_seeds
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.waveform import to_time_domain
 from phyloc.reporting import OutputExistsError

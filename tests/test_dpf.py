@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from phyloc.localization import _kernels as K
-from phyloc.localization.dpf import DPFOptions, Prior, run_dpf
+from phyloc.localization.direct.dpf import DPFOptions, Prior, run_dpf
 from phyloc.localization.likelihoods import (
     DirectLikelihood,
     GaussianRangeLikelihood,

@@ -7,8 +7,8 @@ import pytest
 from scipy import stats
 
 from phyloc.errors import ValidationError
-from phyloc.localization import nbp
-from phyloc.localization.gaussian_bp import (
+from phyloc.localization.static import nbp
+from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
     WLSOptions,
     heuristic_start,
@@ -16,7 +16,7 @@ from phyloc.localization.gaussian_bp import (
     run_wls,
     wls_cost,
 )
-from phyloc.localization.nbp import (
+from phyloc.localization.static.nbp import (
     Message,
     NBPOptions,
     kde_logpdf,
@@ -26,7 +26,7 @@ from phyloc.localization.nbp import (
     run_nbp,
     silverman_bandwidth,
 )
-from phyloc.localization.static_ranges import (
+from phyloc.localization.static.static_ranges import (
     INFEASIBLE_LOG_PENALTY,
     ExponentialRangeError,
     GaussianRangeError,
@@ -510,7 +510,7 @@ def test_invalid_inputs_name_the_field(rng):
 def test_logsumexp_matches_scipy():
     from scipy.special import logsumexp as ref
 
-    from phyloc.localization.nbp import logsumexp
+    from phyloc.localization.static.nbp import logsumexp
 
     rng = np.random.default_rng(0)
     a = rng.normal(size=(3, 4, 50)) * 300.0

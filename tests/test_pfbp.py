@@ -6,10 +6,10 @@ from range_fixtures import degenerate_scenario
 
 from phyloc.analysis.pcrlb import pcrlb
 from phyloc.errors import ValidationError
-from phyloc.localization import _flow
-from phyloc.localization.edh import run_edh
-from phyloc.localization.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.range_models import (
+from phyloc.localization.tracking import _flow
+from phyloc.localization.tracking.edh import run_edh
+from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
+from phyloc.localization.tracking.range_models import (
     RangeModel,
     RangeScenario,
     agent_measurements,
@@ -19,7 +19,7 @@ from phyloc.localization.range_models import (
     simulate_scenario,
     state_errors,
 )
-from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
 from phyloc.network import make_network
 
 

@@ -1,4 +1,4 @@
-"""Polygon support outer-approximation (phyloc.localization.polygons and its kernels).
+"""Polygon support outer-approximation (phyloc.localization.static.polygons and its kernels).
 
 References: convex hulls from scipy.spatial, a point-in-convex-polygon test by edge cross
 products written here, brute-force membership on dense grids, closed forms (area of the
@@ -16,8 +16,8 @@ from scipy import stats
 from scipy.spatial import ConvexHull
 
 from phyloc.errors import ValidationError
-from phyloc.localization import _polygon_kernels as K
-from phyloc.localization.polygons import (
+from phyloc.localization.static import _polygon_kernels as K
+from phyloc.localization.static.polygons import (
     ConvexPolygon,
     anchor_polygon,
     ellipse_outer_approximation,

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from phyloc.evaluation.runner import run_tasks, task_seeds
+from phyloc.parallel import run_tasks, task_seeds
 
 
 def _draw(payload, seed_seq):

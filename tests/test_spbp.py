@@ -7,9 +7,9 @@ from range_fixtures import degenerate_scenario
 
 from phyloc.analysis.pcrlb import pcrlb
 from phyloc.errors import ValidationError
-from phyloc.localization import _flow
-from phyloc.localization.pfbp import run_pfbp
-from phyloc.localization.range_models import (
+from phyloc.localization.tracking import _flow
+from phyloc.localization.tracking.pfbp import run_pfbp
+from phyloc.localization.tracking.range_models import (
     RangeModel,
     RangeScenario,
     paper_prior,
@@ -17,7 +17,7 @@ from phyloc.localization.range_models import (
     simulate_scenario,
     state_errors,
 )
-from phyloc.localization.spbp import SPBPOptions, run_spbp, unscented_range_update
+from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp, unscented_range_update
 from phyloc.network import make_network
 
 

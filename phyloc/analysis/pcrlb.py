@@ -16,7 +16,7 @@ unit vector from ``p_j`` to ``p_i``; for an agent–agent range also ``−u uᵀ
 blocks and ``+u uᵀ/σ²`` on ``j``'s block). The expectation over true trajectories (and the
 connectivity they imply) is a Monte Carlo average over scenarios. The bound on the RMSE of
 position (velocity, acceleration) at time ``k`` is ``sqrt(tr(C_pos)/|C|)`` with
-``C = (J^{(k)})^{-1}`` — comparable to :func:`~phyloc.localization.range_models.state_errors`.
+``C = (J^{(k)})^{-1}`` — comparable to :func:`~phyloc.localization.tracking.range_models.state_errors`.
 
 Two ways to average over trajectories are offered (``average=``):
 

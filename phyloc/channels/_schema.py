@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from phyloc import _validate as v
 from phyloc.errors import ValidationError
 
 #: Marks a key without a default (it must be present).
@@ -157,28 +158,6 @@ def describe(spec) -> str:
     return spec.describe()
 
 
-def join(where: str, key: str) -> str:
-    """``"file.toml:" + "los"`` -> ``"file.toml: los"``; ``"a.b" + "c"`` -> ``"a.b.c"``."""
-    return f"{where} {key}" if where.endswith(":") else f"{where}.{key}"
-
-
-def check_keys(table: dict, allowed, where: str) -> None:
-    """Raise :class:`ValidationError` for the first unknown key, naming the closest valid one.
-
-    (Same contract as :func:`phyloc.phy.system.check_keys`, with file-aware field names.)
-    """
-    import difflib
-
-    allowed = list(allowed)
-    for key in table:
-        if key not in allowed:
-            close = difflib.get_close_matches(key, allowed, n=1)
-            hint = f"did you mean '{close[0]}'? " if close else ""
-            raise ValidationError(
-                join(where, key), table[key], f"unknown key; {hint}valid keys: {', '.join(allowed)}"
-            )
-
-
 def parse(table, spec: dict, where: str) -> dict:
     """Validate ``table`` against ``spec``; return the checked values (defaults filled in).
 
@@ -194,10 +173,10 @@ def parse(table, spec: dict, where: str) -> dict:
     """
     if not isinstance(table, dict):
         raise ValidationError(where, table, "must be a table")
-    check_keys(table, spec, where)
+    v.check_keys(table, spec, where)
     out = {}
     for key, sub in spec.items():
-        field = join(where, key)
+        field = v.join(where, key)
         if key not in table:
             if isinstance(sub, dict) and not _has_required(sub):
                 out[key] = parse({}, sub, field)  # an optional sub-table: all defaults

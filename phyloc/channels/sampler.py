@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.channels.scenario import (
     CONDITIONS,
     AwgnCondition,
@@ -64,7 +65,7 @@ from phyloc.channels.scenario import (
 )
 from phyloc.errors import ValidationError
 from phyloc.phy.paths import PathSet
-from phyloc.phy.system import C0, OFDMSystem, check_keys
+from phyloc.phy.system import C0, OFDMSystem
 
 #: K-factor range [dB] inside the LOS delay scaling D(K) (D > 0 on it).
 K_RANGE_FOR_DELAY_SCALING_DB = (-30.0, 40.0)

@@ -16,8 +16,8 @@ import dataclasses
 from dataclasses import dataclass
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.phy.system import check_keys
 
 COMPRESSIONS = ("none", "gzip", "lzf")
 

@@ -191,7 +191,7 @@ def plan_dataset(recipe) -> DatasetPlan:
 
 def realization_seed(seed: int, index: int) -> np.random.SeedSequence:
     """The stream of realization ``index``: equal to ``SeedSequence(seed).spawn(n)[index]``
-    for any ``n > index`` (:func:`phyloc.evaluation.runner.task_seeds`)."""
+    for any ``n > index`` (:func:`phyloc.parallel.task_seeds`)."""
     return np.random.SeedSequence(int(seed), spawn_key=(int(index),))
 
 
@@ -798,7 +798,7 @@ def generate(
 def _run_dask(tasks, done, *, workers, scheduler) -> None:
     from dask.distributed import as_completed
 
-    from phyloc.evaluation.runner import dask_client
+    from phyloc.parallel import dask_client
 
     with dask_client(workers=workers, scheduler=scheduler) as client:
         tag = uuid.uuid4().hex[:8]

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.phy.system import check_keys
 
 
 def experiment_from_dict(cls, d: dict, *, fast: bool = False):

@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
@@ -49,7 +50,6 @@ from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict, scenario_specs
 from phyloc.evaluation.metrics import framework_distance_errors, shape_difference
 from phyloc.evaluation.ranging_experiment import RangingSpec
-from phyloc.evaluation.runner import run_tasks
 from phyloc.localization import (
     DirectLikelihood,
     DPFOptions,
@@ -65,8 +65,8 @@ from phyloc.localization import (
 )
 from phyloc.localization.likelihoods import MarginalDirectLikelihood
 from phyloc.network import NetworkSpec
+from phyloc.parallel import run_tasks
 from phyloc.phy.correlation import correlation_tables
-from phyloc.phy.system import check_keys
 from phyloc.ranging import estimate
 
 METHODS = ("dipnet", "dipnet_published", "corr", "first_peak", "sage", "sage_los")

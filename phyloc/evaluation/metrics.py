@@ -21,6 +21,7 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
+from phyloc.network.geometry import kabsch, orthogonal_fit
 
 MISSING = ("error", "exclude")
 
@@ -160,28 +161,6 @@ def framework_distance_rmse(est, true, is_anchor=None, *, missing: str = "error"
     return float(np.sqrt(np.mean(errors**2)))
 
 
-def _orthogonal_fit(a: np.ndarray, b: np.ndarray, reflection: bool) -> np.ndarray:
-    """Orthogonal ``W`` minimising ``Σ‖W a_i − b_i‖²`` (Kabsch/Umeyama without scale).
-
-    ``det W = +1`` unless ``reflection``. Rank-deficient ``a``/``b`` give one of the minimisers.
-    """
-    h = a.T @ b
-    u, _, vt = np.linalg.svd(h)
-    w = vt.T @ u.T
-    if not reflection and np.linalg.det(w) < 0:
-        d = np.ones(h.shape[0])
-        d[-1] = -1.0
-        w = vt.T @ (d[:, None] * u.T)
-    return w
-
-
-def _kabsch(q: np.ndarray, p: np.ndarray, reflection: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``(R, t)`` minimising ``Σ‖R q_i + t − p_i‖²``."""
-    qm, pm = q.mean(axis=0), p.mean(axis=0)
-    r = _orthogonal_fit(q - qm, p - pm, reflection)
-    return r, pm - r @ qm
-
-
 def rigid_align(est, true, *, is_anchor=None, reflection: bool = True, missing: str = "error"):
     """Optimal rigid transform ``T(x) = R x + t`` of the estimates onto the truth.
 
@@ -247,9 +226,9 @@ def rigid_align(est, true, *, is_anchor=None, reflection: bool = True, missing: 
     dim = p.shape[1]
     agents = ~anchor & present
     if not anchor.any():
-        r, t = _kabsch(q[agents], p[agents], reflection)
+        r, t = kabsch(q[agents], p[agents], reflection)
     else:
-        r0, t0 = _kabsch(q[anchor], p[anchor], reflection)
+        r0, t0 = kabsch(q[anchor], p[anchor], reflection)
         ya = q[anchor] @ r0.T + t0
         c = ya.mean(axis=0)
         _, s, vt = np.linalg.svd(ya - c, full_matrices=True)
@@ -260,7 +239,7 @@ def rigid_align(est, true, *, is_anchor=None, reflection: bool = True, missing: 
         else:
             b, cc = vt[:k].T, vt[k:].T
             y = q[agents] @ r0.T + t0
-            w = _orthogonal_fit((y - c) @ cc, (p[agents] - c) @ cc, reflection)
+            w = orthogonal_fit((y - c) @ cc, (p[agents] - c) @ cc, reflection)
             s_map = b @ b.T + cc @ w @ cc.T
             r = s_map @ r0
             t = c + s_map @ (t0 - c)

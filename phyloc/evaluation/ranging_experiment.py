@@ -34,18 +34,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict, scenario_specs
-from phyloc.evaluation.runner import run_tasks
 from phyloc.network import NetworkSpec
+from phyloc.parallel import run_tasks
 from phyloc.phy import C0, OFDMSystem, PathSet
 from phyloc.phy.bounds import crb_range, zzb_range
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
-from phyloc.phy.system import check_keys
 from phyloc.phy.waveform import qpsk_symbols
 from phyloc.ranging import estimate, ranging_variance
 

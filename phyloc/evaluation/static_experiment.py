@@ -1,11 +1,11 @@
 """Static cooperative localization with polygon-constrained NBP: the POA-NBP paper §V.
 
 A ``kind = "static"`` recipe runs, on ``topologies`` random networks of the paper's setup
-(:func:`~phyloc.localization.static_ranges.paper_static_scenario`: agents uniform in a square,
-13 fixed anchors — layout :data:`~phyloc.localization.static_ranges.PAPER_ANCHOR_UNITS`,
+(:func:`~phyloc.localization.static.static_ranges.paper_static_scenario`: agents uniform in a square,
+13 fixed anchors — layout :data:`~phyloc.localization.static.static_ranges.PAPER_ANCHOR_UNITS`,
 communication range, one-sided exponential ranging errors of mean 0.38 m, eq. (2)):
 
-1. **Polygon support outer-approximation** (Fig. 9): POA (:func:`~phyloc.localization.polygons.poa`)
+1. **Polygon support outer-approximation** (Fig. 9): POA (:func:`~phyloc.localization.static.polygons.poa`)
    for every ``N_E`` of ``experiment.n_edges`` over ``poa_iterations`` iterations, and the
    ellipse outer-approximation baseline — mean area per iteration; the fraction of polygons
    that contain their agent (with non-negative errors: all of them); POA time per node.
@@ -80,20 +80,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.config import Recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict
-from phyloc.evaluation.runner import run_tasks
-from phyloc.localization.gaussian_bp import (
+from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
     WLSOptions,
     run_gaussian_bp,
     run_wls,
 )
-from phyloc.localization.nbp import NBPOptions, run_nbp
-from phyloc.localization.polygons import ellipse_outer_approximation, poa
-from phyloc.localization.static_ranges import paper_static_scenario, range_error_model
-from phyloc.phy.system import check_keys
+from phyloc.localization.static.nbp import NBPOptions, run_nbp
+from phyloc.localization.static.polygons import ellipse_outer_approximation, poa
+from phyloc.localization.static.static_ranges import paper_static_scenario, range_error_model
+from phyloc.parallel import run_tasks
 
 NBP_METHODS = {
     "poa_nbp": "polygon",
@@ -161,7 +161,7 @@ class StaticExperimentSpec:
         with the anchors fixing the frame (:func:`~phyloc.localization.initialization.
         coarse_positions`; the heuristic start where the range graph is disconnected), or the
         centroid of the anchors each agent hears
-        (:func:`~phyloc.localization.gaussian_bp.heuristic_start`). Both are Gauss–Newton-type
+        (:func:`~phyloc.localization.static.gaussian_bp.heuristic_start`). Both are Gauss–Newton-type
         local methods; from the heuristic start they stall in wrong local optima.
     """
 
@@ -285,7 +285,7 @@ def method_options(localization: dict, exp: StaticExperimentSpec) -> MethodOptio
 
 class _EllipseRegion:
     """An ellipse ``{x : (x − c)ᵀ Σ⁻¹ (x − c) <= 1}`` with the polygon-proposal interface
-    (``area``, ``contains``, ``sample_uniform``) of :func:`~phyloc.localization.nbp.run_nbp`."""
+    (``area``, ``contains``, ``sample_uniform``) of :func:`~phyloc.localization.static.nbp.run_nbp`."""
 
     def __init__(self, center, shape):
         self.center = np.asarray(center, dtype=np.float64)

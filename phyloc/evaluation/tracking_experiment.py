@@ -3,18 +3,18 @@
 A recipe of ``kind = "tracking"`` runs, for every scenario token of ``experiment.scenarios``
 (``{token = {n_agents = N, comm_range_m = r_max}}``; ``comm_range_m`` omitted or ``inf``: fully
 connected) and every Monte Carlo run (one task each): a network of PF-BP §VI
-(:func:`~phyloc.localization.range_models.scenario_network_spec`: agents uniform in a
+(:func:`~phyloc.localization.tracking.range_models.scenario_network_spec`: agents uniform in a
 ``side_m`` cube, 9 anchors at its corners and centre in 3-D (5 in 2-D), initial velocity a unit
 vector toward the centre, CA/CV motion with ``dt_s``, ``accel_std``), range measurements, the
-prior of eq. (31) (:func:`~phyloc.localization.range_models.paper_prior`, ``sigma_p``) and every
+prior of eq. (31) (:func:`~phyloc.localization.tracking.range_models.paper_prior`, ``sigma_p``) and every
 method of ``experiment.methods`` on the *same* measurements from the *same* prior mean:
 
-``pfbp``      PF-BP, Algorithm 1 (:func:`~phyloc.localization.pfbp.run_pfbp`)
+``pfbp``      PF-BP, Algorithm 1 (:func:`~phyloc.localization.tracking.pfbp.run_pfbp`)
 ``pfbp_reg``  PF-BP with the regularization of eqs. (32), (33) ("reg" in the paper)
-``sirbp``     bootstrap-particle BP, §V-B (:func:`~phyloc.localization.sirbp.run_sirbp`)
-``spbp``      sigma-point BP (:func:`~phyloc.localization.spbp.run_spbp`)
+``sirbp``     bootstrap-particle BP, §V-B (:func:`~phyloc.localization.tracking.sirbp.run_sirbp`)
+``spbp``      sigma-point BP (:func:`~phyloc.localization.tracking.spbp.run_spbp`)
 ``edh``       centralized EDH particle-flow filter, App. B
-              (:func:`~phyloc.localization.edh.run_edh`)
+              (:func:`~phyloc.localization.tracking.edh.run_edh`)
 
 Method options are ``[localization.<method>]`` tables (keys of :class:`PFBPOptions`,
 :class:`SIRBPOptions`, :class:`SPBPOptions`; ``pfbp_reg`` defaults to ``regularize = true``);
@@ -27,7 +27,7 @@ Tichavský recursion with the range information averaged over the true trajector
 Measurements (``experiment.measurements``)
     ``"gaussian"``  the paper's model (eq. (8)): ``z = ‖p_i − p_j‖ + N(0, σ²)``, ``σ = sigma_r``,
                     for every pair within ``comm_range_m``
-                    (:func:`~phyloc.localization.range_models.simulate_scenario`).
+                    (:func:`~phyloc.localization.tracking.range_models.simulate_scenario`).
     ``"sage"``      ranges estimated from simulated waveforms: per realization
                     :func:`~phyloc.datasets.simulate.simulate_realization` draws the network
                     (the same spec; ``[system]``, ``[channel]`` — e.g. WINNER II C2), channels
@@ -87,14 +87,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.analysis.pcrlb import pcrlb
 from phyloc.config import Recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict
-from phyloc.evaluation.runner import run_tasks
-from phyloc.localization.edh import run_edh
-from phyloc.localization.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.range_models import (
+from phyloc.localization.tracking.edh import run_edh
+from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
+from phyloc.localization.tracking.range_models import (
     STATE_MODELS,
     RangeModel,
     RangeScenario,
@@ -103,9 +103,9 @@ from phyloc.localization.range_models import (
     scenario_network_spec,
     simulate_scenario,
 )
-from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
-from phyloc.localization.spbp import SPBPOptions, run_spbp
-from phyloc.phy.system import check_keys
+from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
+from phyloc.parallel import run_tasks
 
 METHODS = ("pfbp", "pfbp_reg", "sirbp", "spbp", "edh")
 MEASUREMENTS = ("gaussian", "sage")

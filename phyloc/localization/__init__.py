@@ -1,20 +1,18 @@
 """Localization: DiPNet (direct), the two-step equivalent-likelihood DPF, initialization.
 
-See :mod:`phyloc.localization.dpf` (the filter and its safeguards),
+See :mod:`phyloc.localization.direct.dpf` (the filter and its safeguards),
 :mod:`phyloc.localization.likelihoods` (DiPNet's eq. (25) and the Gaussian ranging model with the
 ERV of eq. (18)) and :mod:`phyloc.localization.initialization` (truth-free coarse positions,
 informed and gauge priors).
 
 Range-level cooperative methods: PF-BP, SIR-BP, SP-BP and EDH for tracking
-(:mod:`~phyloc.localization.range_models`), and for static networks with one-sided ranging
-errors the polygon outer-approximation (:mod:`~phyloc.localization.polygons`), NBP with
-interchangeable proposals (:mod:`~phyloc.localization.nbp`), Gaussian BP and WLS
-(:mod:`~phyloc.localization.gaussian_bp`) on :mod:`~phyloc.localization.static_ranges`.
+(:mod:`~phyloc.localization.tracking.range_models`), and for static networks with one-sided ranging
+errors the polygon outer-approximation (:mod:`~phyloc.localization.static.polygons`), NBP with
+interchangeable proposals (:mod:`~phyloc.localization.static.nbp`), Gaussian BP and WLS
+(:mod:`~phyloc.localization.static.gaussian_bp`) on :mod:`~phyloc.localization.static.static_ranges`.
 """
 
-from phyloc.localization.dpf import DPFOptions, DPFResult, Prior, run_dpf, run_tracking
-from phyloc.localization.edh import run_edh
-from phyloc.localization.gaussian_bp import GaussianBPOptions, WLSOptions, run_gaussian_bp, run_wls
+from phyloc.localization.direct.dpf import DPFOptions, DPFResult, Prior, run_dpf, run_tracking
 from phyloc.localization.initialization import (
     INFORMED_START_STD_M,
     CoarseSolution,
@@ -31,9 +29,14 @@ from phyloc.localization.initialization import (
     smacof,
 )
 from phyloc.localization.likelihoods import DirectLikelihood, GaussianRangeLikelihood
-from phyloc.localization.nbp import NBPOptions, run_nbp
-from phyloc.localization.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.polygons import (
+from phyloc.localization.static.gaussian_bp import (
+    GaussianBPOptions,
+    WLSOptions,
+    run_gaussian_bp,
+    run_wls,
+)
+from phyloc.localization.static.nbp import NBPOptions, run_nbp
+from phyloc.localization.static.polygons import (
     ConvexPolygon,
     anchor_polygon,
     ellipse_outer_approximation,
@@ -41,7 +44,15 @@ from phyloc.localization.polygons import (
     poa,
     scale_polygon,
 )
-from phyloc.localization.range_models import (
+from phyloc.localization.static.static_ranges import (
+    ExponentialRangeError,
+    GaussianRangeError,
+    paper_static_scenario,
+    simulate_ranges,
+)
+from phyloc.localization.tracking.edh import run_edh
+from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
+from phyloc.localization.tracking.range_models import (
     RangeModel,
     RangeScenario,
     paper_prior,
@@ -49,14 +60,8 @@ from phyloc.localization.range_models import (
     simulate_scenario,
     state_errors,
 )
-from phyloc.localization.sirbp import SIRBPOptions, run_sirbp
-from phyloc.localization.spbp import SPBPOptions, run_spbp
-from phyloc.localization.static_ranges import (
-    ExponentialRangeError,
-    GaussianRangeError,
-    paper_static_scenario,
-    simulate_ranges,
-)
+from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
 
 __all__ = [
     "INFORMED_START_STD_M",

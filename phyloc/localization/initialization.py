@@ -33,6 +33,7 @@ from scipy.sparse import csgraph
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
+from phyloc.network.geometry import kabsch
 
 INFORMED_START_STD_M = 10.0
 """Default σ0 [m] of the informed start (:func:`informed_centers`)."""
@@ -413,14 +414,6 @@ class CoarseSolution:
     frame: str
 
 
-def _kabsch(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(R, t)`` with R orthogonal (reflections allowed) minimizing ``Σ‖R s_i + t − d_i‖²``."""
-    sm, dm = src.mean(axis=0), dst.mean(axis=0)
-    u, _, vt = np.linalg.svd((src - sm).T @ (dst - dm))
-    R = vt.T @ u.T
-    return R, dm - R @ sm
-
-
 def _affine_rank(P: np.ndarray) -> int:
     if P.shape[0] < 2:
         return 0
@@ -552,7 +545,7 @@ def coarse_positions(
                 X, s = Xr, sr
 
     if n_anchor:
-        R, t = _kabsch(X[anchor], A)
+        R, t = kabsch(X[anchor], A)
         X = X @ R.T + t
         X[anchor] = A
         if n_anchor < n:

@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.network.motion import MotionSpec, _choice, simulate_motion
-from phyloc.phy.system import check_keys
+from phyloc.network.motion import MotionSpec, simulate_motion
 
 #: Rules placing a count of anchors (:attr:`NetworkSpec.anchor_layout`).
 ANCHOR_LAYOUTS = ("corners", "corners_center", "grid", "uniform")
@@ -87,7 +87,7 @@ def anchor_positions(
     -------
     positions : [n_anchors, dim] float64 [m]
     """
-    _choice("network.anchor_layout", layout, ANCHOR_LAYOUTS)
+    v.choice("network.anchor_layout", layout, ANCHOR_LAYOUTS)
     side = np.asarray(region_m, dtype=np.float64)
     dim = side.size
     n = v.integer("network.anchors", n_anchors, minimum=1)
@@ -204,8 +204,8 @@ class NetworkSpec:
             v.positive(f"{s}.region_m", x)
         object.__setattr__(self, "region_m", region)
 
-        _choice(f"{s}.anchor_layout", self.anchor_layout, ANCHOR_LAYOUTS)
-        _choice(f"{s}.on_isolated", self.on_isolated, ON_ISOLATED)
+        v.choice(f"{s}.anchor_layout", self.anchor_layout, ANCHOR_LAYOUTS)
+        v.choice(f"{s}.on_isolated", self.on_isolated, ON_ISOLATED)
         anchors = self.anchors
         if anchors is None or (isinstance(anchors, (int, np.integer)) and anchors == 0):
             anchors = None

@@ -34,8 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.phy.system import check_keys
 
 #: Motion models understood by :class:`MotionSpec` and :func:`simulate_motion`.
 MOTION_MODELS = ("static", "random_walk", "constant_velocity", "constant_acceleration")
@@ -45,12 +45,6 @@ KINEMATIC_MODELS = ("constant_velocity", "constant_acceleration")
 INITIAL_VELOCITIES = ("gaussian", "toward_center", "zero")
 
 _ORDER = {"constant_velocity": 2, "constant_acceleration": 3}
-
-
-def _choice(name: str, value, allowed) -> str:
-    if not isinstance(value, str) or value not in allowed:
-        raise ValidationError(name, value, "must be one of " + ", ".join(repr(a) for a in allowed))
-    return value
 
 
 @dataclass(frozen=True)
@@ -106,8 +100,8 @@ class MotionSpec:
 
     def __post_init__(self):
         s = "network.motion"
-        _choice(f"{s}.model", self.model, MOTION_MODELS)
-        _choice(f"{s}.initial_velocity", self.initial_velocity, INITIAL_VELOCITIES)
+        v.choice(f"{s}.model", self.model, MOTION_MODELS)
+        v.choice(f"{s}.initial_velocity", self.initial_velocity, INITIAL_VELOCITIES)
         object.__setattr__(
             self, "n_snapshots", v.integer(f"{s}.n_snapshots", self.n_snapshots, minimum=1)
         )
@@ -158,7 +152,7 @@ def _kinematic_blocks(model: str, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _check_kinematic(model, dim, dt_s):
-    _choice("model", model, KINEMATIC_MODELS)
+    v.choice("model", model, KINEMATIC_MODELS)
     dim = v.integer("dim", dim, minimum=1)
     dt_s = v.positive("dt_s", dt_s)
     return model, dim, dt_s

@@ -181,25 +181,12 @@ class OFDMSystem:
     def from_dict(cls, d: dict, *, section: str = "system") -> OFDMSystem:
         """Build from a recipe section; unknown keys are errors naming the closest valid key."""
         allowed = [f.name for f in dataclasses.fields(cls)]
-        check_keys(d, allowed, section)
+        v.check_keys(d, allowed, section)
         return cls(**d)
 
     def to_dict(self) -> dict:
         """The init fields as a plain dict (recipe form)."""
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-
-
-def check_keys(d: dict, allowed, section: str) -> None:
-    """Raise :class:`ValidationError` for the first key of ``d`` not in ``allowed``."""
-    import difflib
-
-    for key in d:
-        if key not in allowed:
-            close = difflib.get_close_matches(key, allowed, n=1)
-            hint = f"did you mean '{close[0]}'? " if close else ""
-            raise ValidationError(
-                f"{section}.{key}", d[key], f"unknown key; {hint}valid keys: {', '.join(allowed)}"
-            )
 
 
 def free_space_path_loss_db(distance_m, carrier_frequency_hz):

@@ -7,7 +7,7 @@ spaced λ-steps (eqs. (42), (43)), using every range of the time step (centraliz
 ``z_ij`` and ``z_ji``); weight by the invertible flow (eq. (44)); resample systematically; update
 the covariance by a UKF at the posterior mean (eq. (49)). The prior-density ratio of eq. (44)
 uses the Gaussian ``N(x̄^{(k|k−1)}, P^{(k|k−1)})`` (the transition density is singular for CV/CA),
-as in :mod:`phyloc.localization.pfbp`.
+as in :mod:`phyloc.localization.tracking.pfbp`.
 """
 
 from __future__ import annotations
@@ -17,15 +17,15 @@ import time
 import numpy as np
 from scipy.linalg import block_diag
 
-from phyloc.localization import _flow
-from phyloc.localization.pfbp import (
+from phyloc.localization.tracking import _flow
+from phyloc.localization.tracking.pfbp import (
     PFBPOptions,
     regularize,
     resample_permute,
     run_flow,
     stacked_loglik,
 )
-from phyloc.localization.range_models import (
+from phyloc.localization.tracking.range_models import (
     RangeScenario,
     TrackResult,
     all_measurements,

@@ -23,10 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.localization import _flow
-from phyloc.localization.pfbp import regularize, resample_permute
-from phyloc.localization.range_models import (
+from phyloc.localization.particles import regularize, resample_permute
+from phyloc.localization.tracking import _flow
+from phyloc.localization.tracking.range_models import (
     FACTORS,
     RangeScenario,
     TrackResult,
@@ -35,7 +36,6 @@ from phyloc.localization.range_models import (
     check_run_args,
     sample_gaussian,
 )
-from phyloc.phy.system import check_keys
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ counter-clockwise (CCW); ``m = 0`` is the empty set, ``m = 1`` a point and ``m =
 (degenerate polygons arise from zero ranges and tangent disks and are handled without NaN).
 Computations keep points within ``1e-12 ×`` the coordinate scale outside a halfspace, so
 rounding never cuts off a feasible point. Numba kernels live in
-:mod:`phyloc.localization._polygon_kernels`.
+:mod:`phyloc.localization.static._polygon_kernels`.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
-from phyloc.localization import _polygon_kernels as K
+from phyloc.localization.static import _polygon_kernels as K
 
 _TOL_REL = 1e-12
 """Relative length tolerance of the geometry (times the coordinate scale, at least 1 m)."""
@@ -916,7 +916,7 @@ def _ellipse_area(sig: np.ndarray) -> float:
 def _outer_ellipse(w: np.ndarray, tol: float):
     """Minimum-area ellipse containing the convex polygon ``w`` (its vertices).
 
-    Löwner–John ellipse by :func:`~phyloc.localization._polygon_kernels.mvee_kernel`; a flat
+    Löwner–John ellipse by :func:`~phyloc.localization.static._polygon_kernels.mvee_kernel`; a flat
     polygon (point, segment, area below ``tol²``) gets the ellipse through the corners of its
     principal-axis bounding rectangle (``Σ = 2 Σ_k h_k² e_k e_kᵀ``, half-extents ``h_k``).
     """

@@ -37,12 +37,6 @@ FACTORS = ("distributed", "centralized")
 _ORDER = {"static": 1, "constant_velocity": 2, "constant_acceleration": 3}
 
 
-def _choice(name, value, allowed):
-    if not isinstance(value, str) or value not in allowed:
-        raise ValidationError(name, value, "must be one of " + ", ".join(repr(a) for a in allowed))
-    return value
-
-
 @dataclass(frozen=True)
 class RangeModel:
     """Agent state model and Gaussian range measurement model (PF-BP §II).
@@ -74,7 +68,7 @@ class RangeModel:
     sigma_r: float = 0.1
 
     def __post_init__(self):
-        _choice("motion", self.motion, STATE_MODELS)
+        v.choice("motion", self.motion, STATE_MODELS)
         dim = v.integer("dim", self.dim)
         if dim not in (2, 3):
             raise ValidationError("dim", self.dim, "must be 2 or 3")
@@ -318,7 +312,7 @@ def scenario_network_spec(
     """
     from phyloc.network import MotionSpec, NetworkSpec
 
-    _choice("motion", motion, STATE_MODELS)
+    v.choice("motion", motion, STATE_MODELS)
     ms = MotionSpec(
         model=motion,
         n_snapshots=n_steps + 1,
@@ -396,7 +390,7 @@ def agent_measurements(z_k: np.ndarray, agent: int, factors: str = "distributed"
     partners : [P] int64
         Sorted agents (≠ ``agent``) that appear in a measurement.
     """
-    _choice("factors", factors, FACTORS)
+    v.choice("factors", factors, FACTORS)
     row = z_k[agent]
     tx = np.flatnonzero(np.isfinite(row))
     rx = np.full(tx.size, agent)
@@ -445,7 +439,7 @@ def sample_gaussian(mean: np.ndarray, cov: np.ndarray, n: int, rng: np.random.Ge
 
     ``mean [n_agents, N_D]``, ``cov [n_agents, N_D, N_D]`` (PSD; a singular block is jittered).
     """
-    from phyloc.localization._flow import robust_cholesky
+    from phyloc.localization.tracking._flow import robust_cholesky
 
     mean = v.finite_array("prior_mean", mean, ndim=2)
     cov = v.finite_array("prior_cov", cov, ndim=3)

@@ -57,7 +57,7 @@ error no longer changes notably). ``stop_on_convergence`` ends the run there.
 **Cost**: the O(|S_{→j}|·N_S²) KDE evaluation (eq. (8)) is :func:`kde_logpdf_kernel` (numba,
 serial) with the plain-NumPy twin :func:`kde_logpdf_numpy` (``backend="numpy"``); the LSCV
 score, O(N_S²) per message up to ``lscv_max_samples``, is :func:`lscv_grid_kernel` /
-:func:`lscv_grid_numpy`, both in the private module :mod:`phyloc.localization._nbp_kernels`.
+:func:`lscv_grid_numpy`, both in the private module :mod:`phyloc.localization.static._nbp_kernels`.
 Measured in the §V network (≈ 12.5 links per agent, one loaded
 2-core machine): ≈ 3 / 5 / 10 / 24 ms per agent and iteration at N_S = 100 / 200 / 400 /
 800 with the polygon proposal — at these sizes the O(N_S) per-message work and the capped
@@ -65,7 +65,7 @@ LSCV weigh as much as the quadratic KDE, which itself grows as N_S² (≈ 0.2 / 
 10 messages at N_S = 100 / 200 / 400, 20–40× faster than the NumPy twin, depending on the load).
 
 Polygons: any object with ``.area`` [m²], ``.contains(points [n, 2]) -> bool [n]`` and
-``.sample_uniform(n, rng) -> [n, 2]`` (e.g. :class:`phyloc.localization.polygons.ConvexPolygon`);
+``.sample_uniform(n, rng) -> [n, 2]`` (e.g. :class:`phyloc.localization.static.polygons.ConvexPolygon`);
 this module does not import the polygon module.
 """
 
@@ -79,16 +79,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.localization import _kernels as K
-from phyloc.localization._nbp_kernels import (
+from phyloc.localization.particles import systematic_indices
+from phyloc.localization.static._nbp_kernels import (
     LSCV_GRID,
     kde_logpdf_kernel,
     kde_logpdf_numpy,
     lscv_grid_kernel,
     lscv_grid_numpy,
 )
-from phyloc.localization.static_ranges import (
+from phyloc.localization.static.static_ranges import (
     LINK_MODES,
     RangeError,
     StaticNetwork,
@@ -98,19 +99,12 @@ from phyloc.localization.static_ranges import (
     check_static_network,
     convergence_iteration,
 )
-from phyloc.phy.system import check_keys
 
 #: Proposal distributions of :class:`NBPOptions`.
 PROPOSALS = ("min_entropy", "mixture", "parsimonious", "polygon")
 #: Bandwidth rules (or a float in metres).
 BANDWIDTH_RULES = ("lscv", "silverman")
 BACKENDS = ("numba", "numpy")
-
-
-def _choice(name, value, allowed):
-    if not isinstance(value, str) or value not in allowed:
-        raise ValidationError(name, value, "must be one of " + ", ".join(repr(a) for a in allowed))
-    return value
 
 
 def logsumexp(a, axis=None, keepdims=False):
@@ -158,7 +152,7 @@ def kde_logpdf(points, centers, weights, bandwidths, *, backend: str = "numba") 
     >>> round(float(kde_logpdf(x, np.zeros((1, 2)), [1.0], 1.0)[0]), 6)  # log N(0; 0, I)
     -1.837877
     """
-    _choice("backend", backend, BACKENDS)
+    v.choice("backend", backend, BACKENDS)
     pts = v.finite_array("points", points, ndim=2)
     c = v.finite_array("centers", centers)
     single = c.ndim == 2
@@ -230,7 +224,7 @@ def lscv_bandwidth(
     w = w / w.sum()
     if x.shape[0] > max_samples and not isinstance(rng, np.random.Generator):
         raise ValidationError("rng", rng, f"a Generator is needed above {max_samples} samples")
-    return _lscv(x, w, rng, max_samples, _choice("backend", backend, BACKENDS))
+    return _lscv(x, w, rng, max_samples, v.choice("backend", backend, BACKENDS))
 
 
 def _lscv(x, w, rng, max_samples, backend):
@@ -533,8 +527,8 @@ def message_product(
     -------
     Product
     """
-    _choice("proposal", proposal, PROPOSALS)
-    _choice("backend", backend, BACKENDS)
+    v.choice("proposal", proposal, PROPOSALS)
+    v.choice("backend", backend, BACKENDS)
     msgs = list(messages)
     if not msgs or not all(isinstance(m, Message) for m in msgs):
         raise ValidationError("messages", messages, "must be a non-empty sequence of Message")
@@ -615,7 +609,7 @@ class NBPOptions:
     convergence_rel : float
         ... or the relative decrease of that change below which it has reached its Monte
         Carlo noise floor, in [0, 1) (0.25; 0 disables)
-        (:func:`~phyloc.localization.static_ranges.convergence_iteration`).
+        (:func:`~phyloc.localization.static.static_ranges.convergence_iteration`).
     stop_on_convergence : bool
         End the run at the convergence iteration (False: run ``n_iterations``).
     backend : {"numba", "numpy"}
@@ -640,15 +634,15 @@ class NBPOptions:
     def __post_init__(self):
         for name, lo in (("n_samples", 2), ("n_iterations", 1), ("lscv_max_samples", 8)):
             object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=lo))
-        _choice("proposal", self.proposal, PROPOSALS)
-        _choice("link_mode", self.link_mode, LINK_MODES)
-        _choice("backend", self.backend, BACKENDS)
+        v.choice("proposal", self.proposal, PROPOSALS)
+        v.choice("link_mode", self.link_mode, LINK_MODES)
+        v.choice("backend", self.backend, BACKENDS)
         eps = v.finite("uniform_fraction", self.uniform_fraction)
         if not 0.0 <= eps <= 1.0:
             raise ValidationError("uniform_fraction", eps, "must be in [0, 1]")
         object.__setattr__(self, "uniform_fraction", eps)
         if isinstance(self.bandwidth, str):
-            _choice("bandwidth", self.bandwidth, BANDWIDTH_RULES)
+            v.choice("bandwidth", self.bandwidth, BANDWIDTH_RULES)
         else:
             object.__setattr__(self, "bandwidth", v.positive("bandwidth", self.bandwidth))
         for name in ("min_bandwidth_m", "convergence_tol_m"):
@@ -667,7 +661,7 @@ class NBPOptions:
 
 @dataclass(frozen=True, eq=False)
 class NBPResult(StaticResult):
-    """:class:`~phyloc.localization.static_ranges.StaticResult` of NBP plus its particles.
+    """:class:`~phyloc.localization.static.static_ranges.StaticResult` of NBP plus its particles.
 
     Attributes
     ----------
@@ -745,7 +739,7 @@ def run_nbp(
     ----------
     ranges : [N, N] float64
         ``ranges[j, i] = ẑ_{i→j}`` [m], the range node ``j`` measured to node ``i``; NaN where
-        there is no link (:func:`~phyloc.localization.static_ranges.simulate_ranges`).
+        there is no link (:func:`~phyloc.localization.static.static_ranges.simulate_ranges`).
     anchors : [N] bool or sequence of int
         Anchor nodes (known positions); all other nodes are agents.
     anchor_positions : [n_anchors, 2] or [N, 2] float64
@@ -771,7 +765,7 @@ def run_nbp(
 
     Examples
     --------
-    >>> from phyloc.localization.static_ranges import paper_static_scenario
+    >>> from phyloc.localization.static.static_ranges import paper_static_scenario
     >>> rng = np.random.default_rng(3)
     >>> sc = paper_static_scenario(rng, n_agents=10)
     >>> res = run_nbp(sc.ranges, sc.is_anchor, sc.anchor_positions, rng,
@@ -855,8 +849,7 @@ def run_nbp(
                 if prod.ok:
                     w = prod.weights
                     est_new[a] = w @ prod.samples
-                    idx = np.empty(ns, dtype=np.int64)
-                    K.systematic_resample_kernel(w / w.sum(), float(rng.random()), idx)
+                    idx = systematic_indices(w / w.sum(), ns, rng)
                     B_new[a] = prod.samples[idx]
                     informed_new[a] = True
                     samples[a], weights[a] = prod.samples, w

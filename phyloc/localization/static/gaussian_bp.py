@@ -1,6 +1,6 @@
 """Baselines of POA-NBP §V for static 2-D range networks: parametric (Gaussian) BP and WLS.
 
-Both use the range matrix convention of :mod:`phyloc.localization.static_ranges`
+Both use the range matrix convention of :mod:`phyloc.localization.static.static_ranges`
 (``ranges[j, i] = ẑ_{i→j}``, measured by node ``j``) and a Gaussian view of the error model:
 with ``debias`` the error mean ``b`` is removed (``b = 1/λ`` for the exponential model of eq.
 (2), 0 for the Gaussian one) and the variance ``s²`` is matched (``s = 1/λ`` resp. ``σ``).
@@ -47,8 +47,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.localization.static_ranges import (
+from phyloc.localization.static.static_ranges import (
     LINK_MODES,
     RangeError,
     StaticNetwork,
@@ -58,17 +59,10 @@ from phyloc.localization.static_ranges import (
     check_static_network,
     convergence_iteration,
 )
-from phyloc.phy.system import check_keys
 
 WLS_MODES = ("joint", "distributed")
 _GOLDEN = math.pi * (3.0 - math.sqrt(5.0))
 _EPS_D = 1e-9  # distances below this [m] have no direction: the term is skipped
-
-
-def _choice(name, value, allowed):
-    if not isinstance(value, str) or value not in allowed:
-        raise ValidationError(name, value, "must be one of " + ", ".join(repr(a) for a in allowed))
-    return value
 
 
 def _moments(model: RangeError, debias: bool) -> tuple[float, float]:
@@ -165,7 +159,7 @@ class GaussianBPOptions:
     def __post_init__(self):
         for name in ("n_iterations", "n_inner"):
             object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=1))
-        _choice("link_mode", self.link_mode, LINK_MODES)
+        v.choice("link_mode", self.link_mode, LINK_MODES)
         object.__setattr__(
             self, "convergence_tol_m", v.positive("convergence_tol_m", self.convergence_tol_m)
         )
@@ -247,7 +241,7 @@ def run_gaussian_bp(
 
     Examples
     --------
-    >>> from phyloc.localization.static_ranges import paper_static_scenario
+    >>> from phyloc.localization.static.static_ranges import paper_static_scenario
     >>> sc = paper_static_scenario(np.random.default_rng(3), n_agents=10)
     >>> run_gaussian_bp(sc.ranges, sc.is_anchor, sc.anchor_positions,
     ...                 region=sc.region).estimates.shape
@@ -346,8 +340,8 @@ class WLSOptions:
     def __post_init__(self):
         for name in ("n_iterations", "n_inner"):
             object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=1))
-        _choice("mode", self.mode, WLS_MODES)
-        _choice("link_mode", self.link_mode, LINK_MODES)
+        v.choice("mode", self.mode, WLS_MODES)
+        v.choice("link_mode", self.link_mode, LINK_MODES)
         for name in ("damping", "convergence_tol_m"):
             object.__setattr__(self, name, v.positive(name, getattr(self, name)))
 
@@ -454,7 +448,7 @@ def run_wls(
 
     Examples
     --------
-    >>> from phyloc.localization.static_ranges import paper_static_scenario
+    >>> from phyloc.localization.static.static_ranges import paper_static_scenario
     >>> sc = paper_static_scenario(np.random.default_rng(3), n_agents=10)
     >>> run_wls(sc.ranges, sc.is_anchor, sc.anchor_positions, region=sc.region).final.shape
     (10, 2)

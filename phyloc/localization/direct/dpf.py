@@ -35,13 +35,12 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import logsumexp
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.localization import _kernels as K
+from phyloc.localization import particles as P
 from phyloc.localization.likelihoods import projected_variances
-from phyloc.phy.system import check_keys
 
 
 @dataclass(frozen=True)
@@ -167,28 +166,10 @@ class DPFResult:
     annealing_steps: int = 0
 
 
-def _normalize(lw) -> tuple[np.ndarray, int]:
-    """Normalize log weights per agent; rows without a finite weight become uniform."""
-    lse = logsumexp(lw, axis=1, keepdims=True)
-    bad = ~np.isfinite(lse[:, 0])
-    out = lw - lse
-    if bad.any():
-        out[bad] = -np.log(lw.shape[1])
-    out[~np.isfinite(out)] = -np.inf
-    return out, int(bad.sum())
 
 
-def _moments(particles, lw):
-    w = np.exp(lw)
-    mean = np.einsum("aq,aqd->ad", w, particles)
-    dev = particles - mean[:, None, :]
-    cov = np.einsum("aq,aqi,aqj->aij", w, dev, dev)
-    return mean, cov
 
 
-def _ess(lw) -> np.ndarray:
-    w = np.exp(lw)
-    return 1.0 / np.sum(w * w, axis=1)
 
 
 def _floor(cov, likelihood, centers, agent_nodes, floor_m):
@@ -255,11 +236,11 @@ def run_dpf(
     moving = options.resample_move and logp is not None
     lp = logp(X) if logp is not None else np.zeros((n_agents, Q))
     w_init = 0.0 if prior.log_weights is None else np.asarray(prior.log_weights, float)
-    lw0, n_bad = _normalize(np.where(np.isfinite(lp), w_init, -np.inf))  # eq. (27): w^(p,0)
+    lw0, n_bad = P.normalize_log_weights(np.where(np.isfinite(lp), w_init, -np.inf))  # eq. (27): w^(p,0)
 
     centers = positions.copy()
     covs = np.zeros((is_anchor.size, dim, dim))
-    m, c = _moments(X, lw0)
+    m, c = P.weighted_moments(X, lw0)
     centers[agent_nodes], covs[agent_nodes] = m, c
     K_it = options.n_iterations
     mean_hist = np.empty((K_it + 1, is_anchor.size, dim))
@@ -275,9 +256,9 @@ def run_dpf(
         new_fn = _frozen_loglik(likelihood, centers, covs, 1.0 if moving else options.gamma(k))
         ll_new = new_fn(X)
         if not moving:  # eq. (28): reweight the prior particles by the product of ELs
-            lw, bad = _normalize(lw0 + ll_new)
+            lw, bad = P.normalize_log_weights(lw0 + ll_new)
             n_bad += bad
-            ess_hist[k - 1] = _ess(lw)
+            ess_hist[k - 1] = P.effective_sample_size(lw)
         else:
             X, lp, ll_new, lw, ess, steps = _anneal(
                 X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options
@@ -285,7 +266,7 @@ def run_dpf(
             ess_hist[k - 1] = ess
             n_steps += steps
             ll_old, old_fn = ll_new, new_fn
-        m, c = _moments(X, lw)
+        m, c = P.weighted_moments(X, lw)
         new_centers = centers.copy()
         new_centers[agent_nodes] = m
         if options.cov_floor_m > 0:
@@ -339,13 +320,14 @@ def _anneal(X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options):
         nxt = _next_lambda(lw, delta, lam, options.ess_fraction * Q)
         if steps == options.max_annealing_steps:
             nxt = np.ones(n_agents)
-        lw, _ = _normalize(lw + (nxt - lam)[:, None] * delta)
-        ess_min = np.minimum(ess_min, _ess(lw))
+        lw, _ = P.normalize_log_weights(lw + (nxt - lam)[:, None] * delta)
+        ess_min = np.minimum(ess_min, P.effective_sample_size(lw))
         lam = nxt
-        X, lp, ll_old, ll_new = _resample(X, lw, rng, lp, ll_old, ll_new)
+        X, lp, ll_old, ll_new = P.resample_agents(X, lw, rng, lp, ll_old, ll_new)
         lw = np.full((n_agents, Q), -np.log(Q))
-        X, lp, ll_old, ll_new = _mh_moves(
-            X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, options
+        X, lp, ll_old, ll_new = P.mh_moves(
+            X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng,
+            n_moves=options.n_moves, move_scale=options.move_scale,
         )
     return X, lp, ll_new, lw, ess_min, steps
 
@@ -355,8 +337,8 @@ def _next_lambda(lw, delta, lam, ess_target):
     (bisection on the step, all agents at once)."""
 
     def ess(step):
-        w, _ = _normalize(lw + step[:, None] * delta)
-        return _ess(w)
+        w, _ = P.normalize_log_weights(lw + step[:, None] * delta)
+        return P.effective_sample_size(w)
 
     room = 1.0 - lam
     full = ess(room) >= ess_target
@@ -371,45 +353,10 @@ def _next_lambda(lw, delta, lam, ess_target):
     return np.where(lam >= 1.0, 1.0, np.minimum(lam + step, 1.0))
 
 
-def _resample(X, lw, rng, *arrays):
-    n_agents, Q, _ = X.shape
-    idx = np.empty((n_agents, Q), dtype=np.int64)
-    for a in range(n_agents):
-        idx[a] = systematic_resample(lw[a], Q, rng)
-    out = [np.take_along_axis(X, idx[:, :, None], axis=1)]
-    out += [np.take_along_axis(arr, idx, axis=1) for arr in arrays]
-    return out
 
 
-def _mh_moves(X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, options):
-    """Random-walk MH sweeps targeting prior·exp(λ ll_new + (1 − λ) ll_old) per agent."""
-    n_agents, Q, _ = X.shape
-    lam3 = lam[:, None]
-    for _ in range(options.n_moves):
-        std = np.maximum(X.std(axis=1, keepdims=True) * options.move_scale, 1e-4)
-        Xp = X + std * rng.standard_normal(X.shape)
-        lpp = logp(Xp)
-        lnp = new_fn(Xp)
-        lop = old_fn(Xp) if old_fn is not None else np.zeros_like(lnp)
-        cur = lp + lam3 * ll_new + (1.0 - lam3) * ll_old
-        prop = lpp + lam3 * lnp + (1.0 - lam3) * lop
-        with np.errstate(invalid="ignore"):
-            log_ratio = np.where(np.isfinite(prop), prop - cur, -np.inf)
-        accept = np.log(rng.random((n_agents, Q))) < log_ratio
-        X = np.where(accept[:, :, None], Xp, X)
-        lp = np.where(accept, lpp, lp)
-        ll_new = np.where(accept, lnp, ll_new)
-        ll_old = np.where(accept, lop, ll_old)
-    return X, lp, ll_old, ll_new
 
 
-def systematic_resample(log_weights_row, n, rng) -> np.ndarray:
-    """Indices of a systematic resample of one agent's normalized log weights."""
-    w = np.exp(log_weights_row - np.max(log_weights_row))
-    w /= w.sum()
-    out = np.empty(n, dtype=np.int64)
-    K.systematic_resample_kernel(w, float(rng.random()), out)
-    return out
 
 
 def projected_variance_of(centers, covs, rx, tx):
@@ -459,8 +406,8 @@ def run_tracking(
         prev = out[-1]
         X, lw = prev.particles, prev.log_weights
         Q = X.shape[1]
-        if np.any(_ess(lw) < resample_ess * Q):
-            X, lw = _resample_regularize(X, lw, rng, regularize)
+        if np.any(P.effective_sample_size(lw) < resample_ess * Q):
+            X, lw = P.resample_regularize(X, lw, rng, regularize)
         X = X + q * rng.standard_normal(X.shape)
         out.append(
             run_dpf(
@@ -469,13 +416,3 @@ def run_tracking(
         )
     return out
 
-
-def _resample_regularize(X, lw, rng, regularize):
-    """Systematic resampling of every agent, then optional Gaussian jitter (Silverman)."""
-    n_agents, Q, dim = X.shape
-    X = _resample(X, lw, rng)[0]
-    if regularize:
-        h = (4.0 / (Q * (dim + 2))) ** (1.0 / (dim + 4))  # Silverman's factor
-        std = X.std(axis=1, keepdims=True)
-        X = X + h * std * rng.standard_normal(X.shape)
-    return X, np.full((n_agents, Q), -np.log(Q))

@@ -10,7 +10,7 @@ with one of two error models:
   (POA-NBP eq. (2); default mean 0.38 m, §V-A). Its likelihood is zero for ``z < d``.
 - :class:`GaussianRangeError` — ``ε ~ N(0, σ²)``.
 
-**Range matrix convention** (as in :mod:`phyloc.localization.range_models`): a dense
+**Range matrix convention** (as in :mod:`phyloc.localization.tracking.range_models`): a dense
 ``ranges[N, N]`` float64 array, ``ranges[j, i] = ẑ_{i→j}`` is the range node ``j`` *measured*
 to node ``i`` (row = measuring node), NaN where there is no link and on the diagonal. Both nodes
 of a pair within the communication range ``r_com`` measure, each with its own independent error

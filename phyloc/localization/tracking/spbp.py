@@ -6,7 +6,7 @@ After Meyer, Hlinka, Hlawatsch, "Sigma point belief propagation", IEEE Signal Pr
 1. predict by the linear motion model (PF-BP eqs. (1), (29)): ``x̂_i ← F x̂_i``,
    ``P_i ← F P_i Fᵀ + Q``;
 2. for ``u = 1 … U`` message-passing iterations, all beliefs in parallel (the schedule of
-   :func:`~phyloc.localization.pfbp.run_pfbp`, extrinsic information approximated by beliefs):
+   :func:`~phyloc.localization.tracking.pfbp.run_pfbp`, extrinsic information approximated by beliefs):
    stack the agent's *predicted* state with its neighbours' beliefs of iteration ``u − 1`` into
    β with mean ``[x̂_i; x̂_j …]`` and block-diagonal covariance ``P̃_i`` (as PF-BP eq. (28));
    the message product and marginalization are one unscented update of β by the agent's range
@@ -20,7 +20,7 @@ After Meyer, Hlinka, Hlawatsch, "Sigma point belief propagation", IEEE Signal Pr
 3. the estimate is ``x̂_i``.
 
 The sigma points are those of the PF-BP UKF covariance step
-(:func:`~phyloc.localization._flow.ukf_covariance_update`, eq. (30)): ``β̄ ± √n L_j`` with
+(:func:`~phyloc.localization.tracking._flow.ukf_covariance_update`, eq. (30)): ``β̄ ± √n L_j`` with
 ``L Lᵀ = P̃_i`` (Cholesky), weights ``1/(2n)``, no centre point (Julier's κ = 0), so the
 covariance update is the Schur complement of a PSD matrix and stays PSD. Measurements follow
 ``factors`` as in PF-BP (distributed: eq. (17); centralized: eq. (18)). An agent without
@@ -39,9 +39,10 @@ import numpy as np
 from scipy.linalg import block_diag
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.localization import _flow
-from phyloc.localization.range_models import (
+from phyloc.localization.tracking import _flow
+from phyloc.localization.tracking.range_models import (
     FACTORS,
     RangeScenario,
     TrackResult,
@@ -50,7 +51,6 @@ from phyloc.localization.range_models import (
     check_run_args,
     flow_links,
 )
-from phyloc.phy.system import check_keys
 
 
 @dataclass(frozen=True)
@@ -100,7 +100,7 @@ def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_o
         Stacked mean β̄.
     P : [n, n] float64
         Its covariance ``P̃`` (PSD; jittered when singular).
-    off_a, off_b, anchor_pos : as in :mod:`phyloc.localization._flow`
+    off_a, off_b, anchor_pos : as in :mod:`phyloc.localization.tracking._flow`
         Measurement ``q`` is ``‖β[off_a:off_a+dim] − β[off_b:off_b+dim]‖`` (anchor
         ``anchor_pos[q]`` when ``off_b[q] < 0``).
     z : [L] float64
@@ -115,7 +115,7 @@ def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_o
     -------
     mean_out : [n_out] float64
     cov_out : [n_out, n_out] float64
-        Equal to :func:`~phyloc.localization._flow.ukf_covariance_update` (same sigma points).
+        Equal to :func:`~phyloc.localization.tracking._flow.ukf_covariance_update` (same sigma points).
     """
     n = mean.size
     L = _flow.robust_cholesky(P) * np.sqrt(n)
@@ -149,14 +149,14 @@ def run_spbp(
     Parameters
     ----------
     scenario : RangeScenario
-        From :func:`~phyloc.localization.range_models.simulate_scenario`.
+        From :func:`~phyloc.localization.tracking.range_models.simulate_scenario`.
     prior_mean : [n_agents, N_D] float64
-        ``x̂_i^{(0)}`` (e.g. :func:`~phyloc.localization.range_models.paper_prior`, eq. (31)).
+        ``x̂_i^{(0)}`` (e.g. :func:`~phyloc.localization.tracking.range_models.paper_prior`, eq. (31)).
     prior_cov : [n_agents, N_D, N_D] float64
         ``P_i^{(0)}``.
     rng : numpy.random.Generator, optional
         Unused (SP-BP is deterministic); accepted for the signature of
-        :func:`~phyloc.localization.pfbp.run_pfbp`.
+        :func:`~phyloc.localization.tracking.pfbp.run_pfbp`.
     options : SPBPOptions, optional
 
     Returns
@@ -168,7 +168,7 @@ def run_spbp(
     Examples
     --------
     >>> from phyloc.network import make_network
-    >>> from phyloc.localization.range_models import (RangeModel, paper_prior,
+    >>> from phyloc.localization.tracking.range_models import (RangeModel, paper_prior,
     ...     scenario_network_spec, simulate_scenario)
     >>> rng = np.random.default_rng(1)
     >>> net = make_network(scenario_network_spec(n_agents=3, n_steps=2), rng)

@@ -35,10 +35,11 @@ import numpy as np
 from scipy.linalg import block_diag
 
 from phyloc import _validate as v
+from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.localization import _flow
-from phyloc.localization.dpf import systematic_resample
-from phyloc.localization.range_models import (
+from phyloc.localization.particles import regularize, resample_permute
+from phyloc.localization.tracking import _flow
+from phyloc.localization.tracking.range_models import (
     FACTORS,
     RangeScenario,
     TrackResult,
@@ -48,7 +49,6 @@ from phyloc.localization.range_models import (
     flow_links,
     sample_gaussian,
 )
-from phyloc.phy.system import check_keys
 
 
 @dataclass(frozen=True)
@@ -143,21 +143,8 @@ def stacked_loglik(B, off_a, off_b, anchor_pos, z, inv_var, dim):
     return out
 
 
-def resample_permute(X, log_w, rng):
-    """Systematic resampling (reusing :func:`~phyloc.localization.dpf.systematic_resample`)
-    followed by a random permutation; non-finite weights fall back to uniform."""
-    M = X.shape[0]
-    if not np.any(np.isfinite(log_w)):
-        log_w = np.zeros(M)
-    log_w = np.where(np.isfinite(log_w), log_w, -np.inf)
-    idx = systematic_resample(log_w, M, rng)
-    return X[rng.permutation(idx)]
 
 
-def regularize(X, cov, rng):
-    """Add ``N(0, Σ_r)`` to every particle (PF-BP eq. (32)); ``Σ_r`` may be singular."""
-    std = np.sqrt(np.diag(cov))
-    return X + rng.standard_normal(X.shape) * std
 
 
 def run_pfbp(
@@ -172,9 +159,9 @@ def run_pfbp(
     Parameters
     ----------
     scenario : RangeScenario
-        From :func:`~phyloc.localization.range_models.simulate_scenario`.
+        From :func:`~phyloc.localization.tracking.range_models.simulate_scenario`.
     prior_mean : [n_agents, N_D] float64
-        ``x̄_i^{(0)}`` (e.g. :func:`~phyloc.localization.range_models.paper_prior`, eq. (31)).
+        ``x̄_i^{(0)}`` (e.g. :func:`~phyloc.localization.tracking.range_models.paper_prior`, eq. (31)).
     prior_cov : [n_agents, N_D, N_D] float64
         ``P_i^{(0)}``.
     rng : numpy.random.Generator
@@ -188,7 +175,7 @@ def run_pfbp(
     Examples
     --------
     >>> from phyloc.network import make_network
-    >>> from phyloc.localization.range_models import (RangeModel, paper_prior,
+    >>> from phyloc.localization.tracking.range_models import (RangeModel, paper_prior,
     ...     scenario_network_spec, simulate_scenario)
     >>> rng = np.random.default_rng(1)
     >>> net = make_network(scenario_network_spec(n_agents=3, n_steps=2), rng)

@@ -1,4 +1,4 @@
-"""Numba kernels of :mod:`phyloc.localization.nbp` and their plain-NumPy twins.
+"""Numba kernels of :mod:`phyloc.localization.static.nbp` and their plain-NumPy twins.
 
 The O(N_S²) Gaussian KDE of a message evaluated at the proposal samples (POA-NBP eq. (8)) and
 the least-squares cross-validation score of a message's bandwidth; each kernel is tested

@@ -1,0 +1,184 @@
+"""Particle parts shared by every particle method: weights, ESS, resampling, regularization, moves.
+
+Each function has one role (Stone Soup's split of updater, resampler and regulariser is the
+model): the direct family (DiPNet / EL-DPF), the tracking family (PF-BP, SIR-BP) and the static
+family (NBP) compose them. Weights live in the log domain; a row without any finite weight
+falls back to uniform weights instead of producing NaN.
+
+Shapes: per-agent particle sets are ``X [n_agents, Q, dim]`` with log weights
+``[n_agents, Q]``; a single (stacked) particle set is ``X [M, n]`` with log weights ``[M]``.
+
+References
+----------
+A. Doucet, N. de Freitas, N. Gordon (eds.), *Sequential Monte Carlo Methods in Practice*,
+Springer, 2001 (systematic resampling, resample-move).
+M. S. Arulampalam, S. Maskell, N. Gordon, T. Clapp, "A tutorial on particle filters for online
+nonlinear/non-Gaussian Bayesian tracking," IEEE Trans. SP 50(2), 2002 (effective sample size).
+PF-BP: the particle-flow BP paper, eq. (32) (regularization by Gaussian jitter).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.special import logsumexp
+
+from phyloc.localization import _kernels as K
+
+
+def normalize_log_weights(lw) -> tuple[np.ndarray, int]:
+    """Normalize log weights per agent; rows without a finite weight become uniform.
+
+    Parameters
+    ----------
+    lw : [n_agents, Q] float64
+        Unnormalized log weights (−inf allowed).
+
+    Returns
+    -------
+    log_weights : [n_agents, Q] float64
+        ``lw − logsumexp(lw)`` per row; ``−log Q`` on rows that had no finite weight.
+    n_degenerate : int
+        How many rows fell back to uniform.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> lw, bad = normalize_log_weights(np.array([[0.0, 0.0], [-np.inf, -np.inf]]))
+    >>> np.exp(lw).round(3).tolist(), bad
+    ([[0.5, 0.5], [0.5, 0.5]], 1)
+    """
+    lse = logsumexp(lw, axis=1, keepdims=True)
+    bad = ~np.isfinite(lse[:, 0])
+    out = lw - lse
+    if bad.any():
+        out[bad] = -np.log(lw.shape[1])
+    out[~np.isfinite(out)] = -np.inf
+    return out, int(bad.sum())
+
+
+def weighted_moments(particles, lw) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted mean ``[n_agents, dim]`` and covariance ``[n_agents, dim, dim]``.
+
+    ``lw [n_agents, Q]`` must be normalized log weights.
+    """
+    w = np.exp(lw)
+    mean = np.einsum("aq,aqd->ad", w, particles)
+    dev = particles - mean[:, None, :]
+    cov = np.einsum("aq,aqi,aqj->aij", w, dev, dev)
+    return mean, cov
+
+
+def effective_sample_size(lw) -> np.ndarray:
+    """``1 / Σ_q w_q²`` per agent for normalized log weights ``lw [n_agents, Q]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> effective_sample_size(np.log(np.array([[0.25] * 4, [1.0, 0, 0, 0]]))).tolist()
+    [4.0, 1.0]
+    """
+    w = np.exp(lw)
+    return 1.0 / np.sum(w * w, axis=1)
+
+
+def systematic_indices(weights, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Indices of a systematic resample of ``n`` from normalized linear ``weights [m]``.
+
+    One uniform draw ``u0`` of ``rng``; index ``i`` is the particle whose cumulative weight
+    covers ``(i + u0)/n``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> systematic_indices(np.array([0.0, 1.0, 0.0]), 4, np.random.default_rng(0)).tolist()
+    [1, 1, 1, 1]
+    """
+    out = np.empty(n, dtype=np.int64)
+    K.systematic_resample_kernel(weights, float(rng.random()), out)
+    return out
+
+
+def systematic_resample(log_weights_row, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Indices of a systematic resample of one agent's log weights ``[Q]`` (max-shifted)."""
+    w = np.exp(log_weights_row - np.max(log_weights_row))
+    w /= w.sum()
+    return systematic_indices(w, n, rng)
+
+
+def resample_agents(X, lw, rng: np.random.Generator, *arrays):
+    """Systematically resample every agent's particles ``X [n_agents, Q, dim]``.
+
+    ``arrays`` (each ``[n_agents, Q]``) are resampled with the same indices. Returns the list
+    ``[X, *arrays]`` resampled; the new weights are uniform.
+    """
+    n_agents, Q, _ = X.shape
+    idx = np.empty((n_agents, Q), dtype=np.int64)
+    for a in range(n_agents):
+        idx[a] = systematic_resample(lw[a], Q, rng)
+    out = [np.take_along_axis(X, idx[:, :, None], axis=1)]
+    out += [np.take_along_axis(arr, idx, axis=1) for arr in arrays]
+    return out
+
+
+def resample_regularize(X, lw, rng: np.random.Generator, regularize: bool):
+    """Systematic resampling of every agent, then optional Gaussian jitter (Silverman's rule).
+
+    Returns ``(X, log_weights)`` with uniform log weights.
+    """
+    n_agents, Q, dim = X.shape
+    X = resample_agents(X, lw, rng)[0]
+    if regularize:
+        h = (4.0 / (Q * (dim + 2))) ** (1.0 / (dim + 4))  # Silverman's factor
+        std = X.std(axis=1, keepdims=True)
+        X = X + h * std * rng.standard_normal(X.shape)
+    return X, np.full((n_agents, Q), -np.log(Q))
+
+
+def resample_permute(X, log_w, rng: np.random.Generator):
+    """Systematic resampling of a stacked set ``X [M, n]`` followed by a random permutation.
+
+    Non-finite weights fall back to uniform.
+    """
+    M = X.shape[0]
+    if not np.any(np.isfinite(log_w)):
+        log_w = np.zeros(M)
+    log_w = np.where(np.isfinite(log_w), log_w, -np.inf)
+    idx = systematic_resample(log_w, M, rng)
+    return X[rng.permutation(idx)]
+
+
+def regularize(X, cov, rng: np.random.Generator):
+    """Add ``N(0, diag Σ_r)`` to every particle of ``X [M, n]`` (PF-BP eq. (32)).
+
+    ``cov [n, n]``: only its diagonal is used, so it may be singular.
+    """
+    std = np.sqrt(np.diag(cov))
+    return X + rng.standard_normal(X.shape) * std
+
+
+def mh_moves(X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, *, n_moves, move_scale):
+    """Random-walk Metropolis–Hastings sweeps per agent (resample-move).
+
+    Target: ``prior · exp(λ ll_new + (1 − λ) ll_old)`` with ``λ [n_agents]``. Proposals are
+    ``X + N(0, (move_scale·std_q X)²)``; ``logp``, ``new_fn`` and ``old_fn`` (or None) evaluate
+    the prior and the two log-likelihoods at ``[n_agents, Q, dim]``. Returns the moved
+    ``(X, lp, ll_old, ll_new)``.
+    """
+    n_agents, Q, _ = X.shape
+    lam3 = lam[:, None]
+    for _ in range(n_moves):
+        std = np.maximum(X.std(axis=1, keepdims=True) * move_scale, 1e-4)
+        Xp = X + std * rng.standard_normal(X.shape)
+        lpp = logp(Xp)
+        lnp = new_fn(Xp)
+        lop = old_fn(Xp) if old_fn is not None else np.zeros_like(lnp)
+        cur = lp + lam3 * ll_new + (1.0 - lam3) * ll_old
+        prop = lpp + lam3 * lnp + (1.0 - lam3) * lop
+        with np.errstate(invalid="ignore"):
+            log_ratio = np.where(np.isfinite(prop), prop - cur, -np.inf)
+        accept = np.log(rng.random((n_agents, Q))) < log_ratio
+        X = np.where(accept[:, :, None], Xp, X)
+        lp = np.where(accept, lpp, lp)
+        ll_new = np.where(accept, lnp, ll_new)
+        ll_old = np.where(accept, lop, ll_old)
+    return X, lp, ll_old, ll_new
