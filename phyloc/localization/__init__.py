@@ -1,17 +1,31 @@
-"""Localization: DiPNet (direct), the two-step equivalent-likelihood DPF, initialization.
+"""Localization: every method is ``run(measurements, prior, rng, options) -> Result`` of its family.
 
-See :mod:`phyloc.localization.direct.dpf` (the filter and its safeguards),
-:mod:`phyloc.localization.likelihoods` (DiPNet's eq. (25) and the Gaussian ranging model with the
-ERV of eq. (18)) and :mod:`phyloc.localization.initialization` (truth-free coarse positions,
-informed and gauge priors).
+Families (one folder each; they do not import each other):
 
-Range-level cooperative methods: PF-BP, SIR-BP, SP-BP and EDH for tracking
-(:mod:`~phyloc.localization.tracking.range_models`), and for static networks with one-sided ranging
-errors the polygon outer-approximation (:mod:`~phyloc.localization.static.polygons`), NBP with
-interchangeable proposals (:mod:`~phyloc.localization.static.nbp`), Gaussian BP and WLS
-(:mod:`~phyloc.localization.static.gaussian_bp`) on :mod:`~phyloc.localization.static.static_ranges`.
+- :mod:`phyloc.localization.direct` — DiPNet and the two-step EL-DPF (DiPNet Algorithm 1),
+- :mod:`phyloc.localization.tracking` — PF-BP, SIR-BP, SP-BP and EDH on ranges (PF-BP paper),
+- :mod:`phyloc.localization.static` — polygon outer-approximation, NBP with its proposals,
+  Gaussian BP and WLS for static networks (POA-NBP paper).
+
+Shared parts live here: :mod:`~phyloc.localization.particles` (weights, ESS, resampling,
+regularization, Metropolis–Hastings moves), :mod:`~phyloc.localization.likelihoods` (the
+``Likelihood`` protocol and its direct, marginal and Gaussian implementations),
+:mod:`~phyloc.localization.initialization` (truth-free coarse positions and priors),
+:mod:`~phyloc.localization.results` (:class:`Result`) and
+:mod:`~phyloc.localization.registry` (:data:`METHODS`, :func:`register_method`).
+
+Examples
+--------
+>>> from phyloc.localization import METHODS
+>>> sorted(METHODS.family("direct"))[:2]
+['corr', 'dipnet']
 """
 
+from phyloc.localization.registry import FAMILIES, METHODS, Method, Registry, register_method
+from phyloc.localization.results import Result, Timing
+
+# The families register their methods in METHODS when imported.
+# --- direct family -------------------------------------------------------------------------
 from phyloc.localization.direct.dpf import DPFOptions, DPFResult, Prior, run_dpf, run_tracking
 from phyloc.localization.initialization import (
     INFORMED_START_STD_M,
@@ -29,6 +43,22 @@ from phyloc.localization.initialization import (
     smacof,
 )
 from phyloc.localization.likelihoods import DirectLikelihood, GaussianRangeLikelihood
+
+# --- tracking family -----------------------------------------------------------------------
+from phyloc.localization.tracking.edh import run_edh
+from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
+from phyloc.localization.tracking.range_models import (
+    RangeModel,
+    RangeScenario,
+    paper_prior,
+    scenario_network_spec,
+    simulate_scenario,
+    state_errors,
+)
+from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
+
+# --- static family -------------------------------------------------------------------------
 from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
     WLSOptions,
@@ -50,67 +80,66 @@ from phyloc.localization.static.static_ranges import (
     paper_static_scenario,
     simulate_ranges,
 )
-from phyloc.localization.tracking.edh import run_edh
-from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.tracking.range_models import (
-    RangeModel,
-    RangeScenario,
-    paper_prior,
-    scenario_network_spec,
-    simulate_scenario,
-    state_errors,
-)
-from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
-from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
 
-__all__ = [
+__all__ = [  # noqa: RUF022 (grouped by family)
+    # shared
+    "FAMILIES",
+    "METHODS",
+    "Method",
+    "Registry",
+    "Result",
+    "Timing",
+    "register_method",
+    # direct
     "INFORMED_START_STD_M",
     "CoarseSolution",
-    "ConvexPolygon",
     "DPFOptions",
     "DPFResult",
     "DirectLikelihood",
-    "ExponentialRangeError",
-    "GaussianBPOptions",
-    "GaussianRangeError",
     "GaussianRangeLikelihood",
-    "NBPOptions",
-    "PFBPOptions",
     "Prior",
-    "RangeModel",
-    "RangeScenario",
-    "SIRBPOptions",
-    "SPBPOptions",
-    "WLSOptions",
-    "anchor_polygon",
     "classical_mds",
     "coarse_positions",
-    "ellipse_outer_approximation",
     "gauge_log_prior",
     "gauge_priors",
     "gaussian_log_prior",
     "gaussian_priors",
     "informed_centers",
-    "intersect",
-    "paper_prior",
-    "paper_static_scenario",
-    "poa",
     "range_matrix",
     "raw_stress",
     "run_dpf",
+    "run_tracking",
+    "shortest_path_completion",
+    "smacof",
+    # tracking
+    "PFBPOptions",
+    "RangeModel",
+    "RangeScenario",
+    "SIRBPOptions",
+    "SPBPOptions",
+    "paper_prior",
     "run_edh",
-    "run_gaussian_bp",
-    "run_nbp",
     "run_pfbp",
     "run_sirbp",
     "run_spbp",
-    "run_tracking",
+    "scenario_network_spec",
+    "simulate_scenario",
+    "state_errors",
+    # static
+    "ConvexPolygon",
+    "ExponentialRangeError",
+    "GaussianBPOptions",
+    "GaussianRangeError",
+    "NBPOptions",
+    "WLSOptions",
+    "anchor_polygon",
+    "ellipse_outer_approximation",
+    "intersect",
+    "paper_static_scenario",
+    "poa",
+    "run_gaussian_bp",
+    "run_nbp",
     "run_wls",
     "scale_polygon",
-    "scenario_network_spec",
-    "shortest_path_completion",
     "simulate_ranges",
-    "simulate_scenario",
-    "smacof",
-    "state_errors",
 ]

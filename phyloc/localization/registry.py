@@ -1,0 +1,178 @@
+"""Localization methods by name: :data:`METHODS` maps a name to a :class:`Method`.
+
+A :class:`Method` bundles the family's ``run(measurements, prior, rng, options) -> Result``, the
+options dataclass it takes and the option values that make this named variant (``pfbp_reg`` is
+``pfbp`` with ``regularize = True``). Experiments and recipes only ever look methods up here,
+so they never branch on names, and a user's own method runs through ``phyloc evaluate`` once it
+is registered (:func:`register_method`; from the command line, ``--plugin MODULE`` imports the
+module that registers it).
+
+Examples
+--------
+>>> from phyloc.localization import METHODS
+>>> METHODS["dipnet"].family
+'direct'
+>>> "pfbp_reg" in METHODS and "poa_nbp" in METHODS
+True
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+
+from phyloc.errors import ValidationError
+
+#: The families a method can belong to; each has its own measurement and prior types.
+FAMILIES = ("direct", "tracking", "static")
+
+
+@dataclass(frozen=True)
+class Method:
+    """One named localization method.
+
+    Attributes
+    ----------
+    name : str
+        The registry key (what recipes write in ``experiment.methods``).
+    family : str
+        One of :data:`FAMILIES`: which measurements and prior ``run`` takes.
+    run : callable
+        ``run(measurements, prior, rng, options) -> Result``.
+    options : type
+        The options dataclass; it has ``from_dict(table, section)``.
+    defaults : dict
+        Option values of this named variant, applied before a recipe's own keys.
+    label : str
+        Display name in tables and figures (default: the name).
+    inputs : str
+        What the method consumes, in the family's words (direct family: ``"tables"`` for
+        correlation tables, ``"ranges:<estimator>"`` for ranges of a range estimator).
+    description : str
+        One line for listings.
+    """
+
+    name: str
+    family: str
+    run: Callable
+    options: type
+    defaults: dict = field(default_factory=dict)
+    label: str = ""
+    inputs: str = ""
+    description: str = ""
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ValidationError("method name", self.name, "a Python identifier, e.g. 'my_bp'")
+        if self.family not in FAMILIES:
+            raise ValidationError(
+                f"method {self.name!r}: family", self.family, "one of " + ", ".join(FAMILIES)
+            )
+        if not callable(self.run):
+            raise ValidationError(f"method {self.name!r}: run", self.run, "a callable")
+        if not dataclasses.is_dataclass(self.options):
+            raise ValidationError(f"method {self.name!r}: options", self.options, "a dataclass")
+        if not self.label:
+            object.__setattr__(self, "label", self.name)
+
+    def make_options(self, table: dict | None = None, section: str = "localization"):
+        """The options of this method: its ``defaults`` updated by a recipe ``table``.
+
+        Unknown keys raise :class:`~phyloc.errors.ValidationError` naming ``section.key``.
+        """
+        merged = {**self.defaults, **(table or {})}
+        from_dict = getattr(self.options, "from_dict", None)
+        if from_dict is not None:
+            return from_dict(merged, section)
+        return self.options(**merged)
+
+
+class Registry(Mapping):
+    """A read-only mapping name → :class:`Method` with :meth:`register`."""
+
+    def __init__(self):
+        self._methods: dict[str, Method] = {}
+
+    def __getitem__(self, name: str) -> Method:
+        try:
+            return self._methods[name]
+        except KeyError:
+            raise ValidationError(
+                "method", name, "a registered method: " + ", ".join(self._methods)
+            ) from None
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._methods)
+
+    def __len__(self) -> int:
+        return len(self._methods)
+
+    def __repr__(self) -> str:
+        return f"Registry({', '.join(self._methods)})"
+
+    def family(self, family: str) -> tuple[str, ...]:
+        """Names of the registered methods of one family, in registration order."""
+        return tuple(n for n, m in self._methods.items() if m.family == family)
+
+    def register(self, method: Method, *, replace: bool = False) -> Method:
+        """Add ``method``; an existing name is an error unless ``replace``."""
+        if not isinstance(method, Method):
+            raise ValidationError("method", method, "a phyloc.localization.Method")
+        if method.name in self._methods and not replace:
+            raise ValidationError(
+                "method name", method.name, "already registered (pass replace=True to replace it)"
+            )
+        self._methods[method.name] = method
+        return method
+
+
+#: Every registered localization method, by name.
+METHODS = Registry()
+
+
+def register_method(
+    name: str,
+    *,
+    family: str,
+    run: Callable,
+    options: type,
+    defaults: dict | None = None,
+    label: str = "",
+    inputs: str = "",
+    description: str = "",
+    replace: bool = False,
+) -> Method:
+    """Register a localization method under ``name`` (see :class:`Method`) and return it.
+
+    Examples
+    --------
+    A method of the direct family that keeps every agent at its prior mean (a baseline):
+
+    >>> import numpy as np
+    >>> from dataclasses import dataclass
+    >>> from phyloc.localization import METHODS, Result, Timing, register_method
+    >>> @dataclass(frozen=True)
+    ... class StayOptions:
+    ...     pass
+    >>> def stay(measurements, prior, rng, options):
+    ...     mean = prior.particles.mean(axis=1)[None]
+    ...     return Result(mean, None, Timing(0.0, np.zeros(1), np.zeros(1)), label=prior.label)
+    >>> _ = register_method("stay_doc", family="direct", run=stay, options=StayOptions,
+    ...                     inputs="ranges:corr", replace=True)
+    >>> METHODS["stay_doc"].family
+    'direct'
+    """
+    return METHODS.register(
+        Method(
+            name=name,
+            family=family,
+            run=run,
+            options=options,
+            defaults=dict(defaults or {}),
+            label=label,
+            inputs=inputs,
+            description=description,
+        ),
+        replace=replace,
+    )
