@@ -21,6 +21,7 @@ Examples
 ['corr', 'dipnet']
 """
 
+# ruff: noqa: I001 (imports grouped by family)
 from phyloc.localization.registry import FAMILIES, METHODS, Method, Registry, register_method
 from phyloc.localization.results import Result, Timing
 
