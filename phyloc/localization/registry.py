@@ -19,10 +19,21 @@ True
 from __future__ import annotations
 
 import dataclasses
+import importlib
+import importlib.util
+import os
+import sys
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 from phyloc.errors import ValidationError
+
+#: Environment variable listing plugin modules (``os.pathsep``-separated module names or
+#: ``.py`` paths) that :func:`load_plugins` imports; ``phyloc evaluate --plugin`` sets it so
+#: that Dask worker processes started afterwards register the same methods.
+PLUGINS_ENV = "PHYLOC_PLUGINS"
+#: Entry-point group of installed packages that register methods when imported.
+ENTRY_POINT_GROUP = "phyloc.methods"
 
 #: The families a method can belong to; each has its own measurement and prior types.
 FAMILIES = ("direct", "tracking", "static")
@@ -176,3 +187,59 @@ def register_method(
         ),
         replace=replace,
     )
+
+
+_loaded: set[str] = set()
+
+
+def _import_plugin(spec: str) -> None:
+    if spec.endswith(".py"):
+        path = os.path.abspath(spec)
+        if not os.path.isfile(path):
+            raise ValidationError(
+                "--plugin", spec, "an importable module name or an existing .py file"
+            )
+        name = "phyloc_plugin_" + os.path.splitext(os.path.basename(path))[0]
+        module_spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(module_spec)
+        sys.modules[name] = module
+        module_spec.loader.exec_module(module)
+    else:
+        try:
+            importlib.import_module(spec)
+        except ImportError as exc:
+            raise ValidationError(
+                "--plugin", spec, f"an importable module name or a .py file ({exc})"
+            ) from None
+
+
+def load_plugins(specs=None) -> None:
+    """Import the modules that register user methods (each once per process).
+
+    Parameters
+    ----------
+    specs : sequence of str, optional
+        Module names or paths of ``.py`` files. Default: those of the environment variable
+        :data:`PLUGINS_ENV`, then every entry point of the group :data:`ENTRY_POINT_GROUP`.
+    """
+    if specs is None:
+        specs = [s for s in os.environ.get(PLUGINS_ENV, "").split(os.pathsep) if s]
+        from importlib.metadata import entry_points
+
+        for ep in entry_points(group=ENTRY_POINT_GROUP):
+            if ep.value not in _loaded:
+                _loaded.add(ep.value)
+                ep.load()
+    for spec in specs:
+        if spec not in _loaded:
+            _import_plugin(spec)
+            _loaded.add(spec)
+
+
+def add_plugins(specs) -> None:
+    """Import ``specs`` now and record them in :data:`PLUGINS_ENV` for worker processes."""
+    specs = [str(s) for s in specs]
+    paths = [os.path.abspath(s) if s.endswith(".py") else s for s in specs]
+    load_plugins(paths)
+    old = [s for s in os.environ.get(PLUGINS_ENV, "").split(os.pathsep) if s]
+    os.environ[PLUGINS_ENV] = os.pathsep.join(dict.fromkeys([*old, *paths]))
