@@ -16,24 +16,31 @@ the estimators' defaults (window 0–300 m; SAGE with L+1 = 5 paths and 10 sweep
 ``ranging.zzb_table_s``                  building the cached ZZB table (one pilot spectrum)
 ``ranging.zzb_interp_max_rel_error``     max relative error of the interpolated ZZB against
                                          direct ``zzb_range`` at random SNRs (−40…60 dB pc)
+
+The NumPy twins of the SAGE and residual kernels are test code (``tests/naive_ranging.py``),
+loaded from the source checkout by :func:`benchmarks._reference.naive`; without one the two
+``sage_numpy`` figures are not measured (the table says ``MISSING``).
 """
 
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
 from phyloc.phy.bounds import zzb_range
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
-from phyloc.ranging import correlation_peak, first_peak, ranging_variance, sage
+from phyloc.ranging import _kernels, correlation_peak, first_peak, ranging_variance, sage
 from phyloc.ranging.variance import clear_cache
 
 try:
+    from phyloc.benchmarks._reference import MISSING, naive
     from phyloc.benchmarks._timing import best_seconds
     from phyloc.benchmarks.bench_phy import BETA, N_LINKS, N_PATHS, make_batch
 except ImportError:  # run from the source tree by asv
+    from benchmarks._reference import MISSING, naive
     from benchmarks._timing import best_seconds
     from benchmarks.bench_phy import BETA, N_LINKS, N_PATHS, make_batch
 
@@ -86,6 +93,31 @@ class Tables:
         correlation_tables(self.R, self.S, self.system, beta=BETA)
 
 
+@contextmanager
+def numpy_twins(twin):
+    """Within the block, :func:`sage` runs its SAGE and residual steps on the NumPy twins
+    ``twin.sage_numpy`` / ``twin.residual_numpy`` (``twin`` = the ``naive_ranging`` module)
+    instead of the Numba kernels; the kernels are restored on exit."""
+
+    def sage_kernel(*args):
+        args[6][:], args[7][:] = twin.sage_numpy(*args)  # dist, gain are updated in place
+
+    def residual_kernel(*args):
+        args[-1][:] = twin.residual_numpy(*args[:-1])
+
+    saved = _kernels.sage_kernel, _kernels.residual_kernel
+    _kernels.sage_kernel, _kernels.residual_kernel = sage_kernel, residual_kernel
+    try:
+        yield
+    finally:
+        _kernels.sage_kernel, _kernels.residual_kernel = saved
+
+
+def _sage_numpy_seconds(twin, table) -> float:
+    with numpy_twins(twin):
+        return best_seconds(lambda: sage(table), repeat=1)
+
+
 def _zzb_accuracy(S, system, n: int, seed: int = 3) -> tuple[float, float]:
     clear_cache()
     t0 = time.perf_counter()
@@ -120,10 +152,11 @@ def report(quick: bool = False) -> dict[str, float]:
     t0 = best_seconds(lambda: sage(table, n_iter=0), repeat=repeat)
     t10 = best_seconds(lambda: sage(table, n_iter=SAGE_ITERATIONS), repeat=repeat)
     fig["ranging.sage.us_per_iteration"] = 1e6 * max(t10 - t0, 0.0) / (SAGE_ITERATIONS * N_LINKS)
-    small = table.select(np.arange(8))
-    t_np = best_seconds(lambda: sage(small, backend="numpy"), repeat=1)
-    fig["ranging.sage_numpy.ranges_per_s"] = 8 / t_np
-    fig["ranging.sage.speedup_vs_numpy"] = fig["ranging.sage.ranges_per_s"] / (8 / t_np)
+    twin = naive("naive_ranging")
+    if twin is not None:
+        t_np = _sage_numpy_seconds(twin, table.select(np.arange(8)))
+        fig["ranging.sage_numpy.ranges_per_s"] = 8 / t_np
+        fig["ranging.sage.speedup_vs_numpy"] = fig["ranging.sage.ranges_per_s"] / (8 / t_np)
     build, err = _zzb_accuracy(S[0], system, 4 if quick else 16)
     fig["ranging.zzb_table_s"] = build
     fig["ranging.zzb_interp_max_rel_error"] = err
@@ -139,21 +172,25 @@ def summarize(fig: dict) -> str:
     for name in METHODS:
         rate = fig[f"ranging.{name}.ranges_per_s"]
         rows.append((name, rate, 1e6 / rate, fig[f"ranging.{name}.cost_over_table"]))
-    rate = fig["ranging.sage_numpy.ranges_per_s"]
-    rows.append(("sage (NumPy twins)", rate, 1e6 / rate, floor / rate))
+    has_twin = "ranging.sage_numpy.ranges_per_s" in fig
+    if has_twin:
+        rate = fig["ranging.sage_numpy.ranges_per_s"]
+        rows.append(("sage (NumPy twins)", rate, 1e6 / rate, floor / rate))
+    else:
+        rows.append(("sage (NumPy twins)", "MISSING", None, None))
     head = (
         f"N = 2569 subcarriers, {int(fig['n_paths'])} paths/link, batches of "
         f"{int(fig['n_links'])} links, beta = {fig['beta']:.3f}; SAGE: "
         f"{int(fig['sage_paths'])} paths, {int(fig['sage_sweeps'])} sweeps"
     )
     t1 = format_table(rows, ["estimator", "ranges/s", "us/range", "x table cost"])
-    extra = format_table(
-        [
-            ("SAGE sweep (all paths), us per link", fig["ranging.sage.us_per_iteration"]),
-            ("SAGE speed-up over NumPy twins", fig["ranging.sage.speedup_vs_numpy"]),
-            ("ZZB table build [s]", fig["ranging.zzb_table_s"]),
-            ("ZZB interpolation max rel. error", fig["ranging.zzb_interp_max_rel_error"]),
-        ],
-        ["figure", "value"],
-    )
-    return f"{head}\n{t1}\n\n{extra}"
+    extra_rows = [("SAGE sweep (all paths), us per link", fig["ranging.sage.us_per_iteration"])]
+    if has_twin:
+        extra_rows.append(("SAGE speed-up over NumPy twins", fig["ranging.sage.speedup_vs_numpy"]))
+    extra_rows += [
+        ("ZZB table build [s]", fig["ranging.zzb_table_s"]),
+        ("ZZB interpolation max rel. error", fig["ranging.zzb_interp_max_rel_error"]),
+    ]
+    extra = format_table(extra_rows, ["figure", "value"])
+    missing = "" if has_twin else f"\nMISSING: {MISSING}"
+    return f"{head}\n{t1}{missing}\n\n{extra}"

@@ -1,9 +1,9 @@
-"""Numba kernels of the PHY core, each beside its plain-NumPy twin (``*_numpy``).
+"""Numba kernels of the PHY core.
 
 Kernels take arrays and scalars only: no validation, no objects, no random numbers. The public
 functions in :mod:`phyloc.phy.synthesis` and :mod:`phyloc.phy.correlation` validate, allocate
-and call them. Tests compare every kernel with its twin and with the slow references in
-``tests/naive.py``.
+and call them. Tests compare every kernel with its plain-NumPy twin (``tests/naive_phy.py``,
+test code, not installed) and with the slow references in ``tests/naive.py``.
 """
 
 from __future__ import annotations
@@ -86,18 +86,6 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
             k0 += _BLOCK
 
 
-def synthesize_numpy(symbols, tx_index, delays, gains, offsets, omega, n_first, noise):
-    """Plain-NumPy twin of :func:`synthesize_kernel` (returns the array)."""
-    n_links, N = noise.shape
-    n = n_first + np.arange(N, dtype=np.float64)
-    link = np.repeat(np.arange(n_links), np.diff(offsets))
-    H = np.zeros((n_links, N), dtype=np.complex128)
-    if delays.size:
-        contrib = gains[:, None] * np.exp(-1j * omega * np.outer(delays, n))
-        np.add.at(H, link, contrib)
-    return symbols[tx_index] * H + noise
-
-
 # ---------------------------------------------------------------------------------------------
 # Lagrange interpolation on a periodic uniform grid
 # ---------------------------------------------------------------------------------------------
@@ -167,24 +155,6 @@ def interp_row_kernel(values, row, x, order, out):
         out[q] = _lagrange_eval(values, row, L, x[q], order)
 
 
-def interp_numpy(values, rows, x, order):
-    """Plain-NumPy twin of :func:`interp_kernel`."""
-    L = values.shape[1]
-    fl = np.floor(x)
-    t = x - fl
-    base = fl.astype(np.int64)
-    half = order // 2
-    nodes = np.arange(order) - half + 1
-    out = np.zeros(x.shape, dtype=np.complex128)
-    for a, xa in enumerate(nodes):
-        w = np.ones_like(t)
-        for b, xb in enumerate(nodes):
-            if b != a:
-                w = w * (t - xb) / (xa - xb)
-        out += values[rows, (base + xa) % L] * w
-    return out
-
-
 def lagrange_weight_max(order: int) -> float:
     """``max_{t∈[0,1]} |Π_m (t − x_m)|`` over the interpolation nodes (error-bound constant)."""
     half = order // 2
@@ -237,30 +207,6 @@ def refine_peaks_kernel(spectrum, n, w, d0, spacing, n_iter, out):
         if abs(d - d0[i]) > spacing:
             d = d0[i]
         out[i] = d
-
-
-def refine_peaks_numpy(spectrum, n, w, d0, spacing, n_iter):
-    """Plain-NumPy twin of :func:`refine_peaks_kernel`."""
-    d = np.array(d0, dtype=np.float64)
-    active = np.ones(d.size, dtype=bool)
-    for _ in range(n_iter):
-        wn = w * n[None, :]
-        e = spectrum * np.exp(-1j * wn * d[:, None])
-        F = e.sum(1)
-        F1 = (-1j * wn * e).sum(1)
-        F2 = (-(wn**2) * e).sum(1)
-        g1 = 2.0 * (F.conj() * F1).real
-        g2 = 2.0 * (np.abs(F1) ** 2 + (F.conj() * F2).real)
-        ok = active & (g2 < 0.0)
-        step = np.zeros_like(d)
-        step[ok] = np.clip(-g1[ok] / g2[ok], -0.5 * spacing, 0.5 * spacing)
-        d = d + step
-        active = ok & (np.abs(step) >= 1e-9 * spacing)
-        if not active.any():
-            break
-    far = np.abs(d - d0) > spacing
-    d[far] = np.asarray(d0)[far]
-    return d
 
 
 @njit(cache=True, parallel=True)

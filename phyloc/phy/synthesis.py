@@ -57,7 +57,6 @@ def synthesize(
     *,
     tx_index=None,
     noise_var=None,
-    backend: str = "numba",
 ) -> np.ndarray:
     """Frequency-domain received symbols of every link (eq. (6), DESIGN.md signal model).
 
@@ -75,8 +74,6 @@ def synthesize(
         Row of ``symbols`` each link transmits; default row 0 for every link.
     noise_var : float or [n_links], float, optional
         Noise variance σ² [W] per subcarrier; default ``system.noise_power_w``.
-    backend : {"numba", "numpy"}
-        The Numba kernel (default) or its plain-NumPy twin (reference and benchmark).
 
     Returns
     -------
@@ -127,14 +124,8 @@ def synthesize(
             raise ValidationError("noise_var", nv, "must be finite and >= 0 W")
         noise = complex_noise((n_links, N), nv, rng)
     n_first = -float((N - 1) // 2)
-    if backend == "numba":
-        out = np.empty((n_links, N), dtype=np.complex128)
-        _kernels.synthesize_kernel(
-            S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, noise, out
-        )
-        return out
-    if backend == "numpy":
-        return _kernels.synthesize_numpy(
-            S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, noise
-        )
-    raise ValidationError("backend", backend, "one of 'numba', 'numpy'")
+    out = np.empty((n_links, N), dtype=np.complex128)
+    _kernels.synthesize_kernel(
+        S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, noise, out
+    )
+    return out

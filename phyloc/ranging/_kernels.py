@@ -1,8 +1,9 @@
-"""Numba kernels of the range estimators, each beside its plain-NumPy twin (``*_numpy``).
+"""Numba kernels of the range estimators.
 
 Kernels take arrays and scalars only: no validation, no objects, no random numbers. The public
 functions in :mod:`phyloc.ranging.sage` validate, allocate and call them; ``tests/test_ranging.py``
-compares every kernel with its twin and with the slow references of ``tests/naive_ranging.py``.
+compares every kernel with its plain-NumPy twin and with the slow references, both in
+``tests/naive_ranging.py`` (test code, not installed).
 
 Everything works on a link's *correlation spectrum* ``c_n = R_n^* S_n`` (the
 :attr:`~phyloc.phy.correlation.CorrelationTable.spectrum` row), subcarriers ``n = n0 + k``,
@@ -216,7 +217,8 @@ def refine_kernel(spectrum, n0, w, d0, spacing, n_iter, out):
     """``out[i]`` = Newton-refined maximum of ``|F_i|²`` from ``d0[i]`` (per link, parallel).
 
     The algorithm of :func:`phyloc.phy._kernels.refine_peaks_kernel` (whose NumPy twin
-    ``refine_peaks_numpy`` is this kernel's reference too), with the vectorized block phasors
+    ``refine_peaks_numpy`` of ``tests/naive_phy.py`` is this kernel's reference too), with the
+    vectorized block phasors
     instead of one complex exponential per subcarrier (~10× faster).
     """
     for i in prange(d0.size):
@@ -228,12 +230,6 @@ def correlate_kernel(spectrum, n0, w, d, out):
     """``out[i] = F_i(d[i]) = Σ_k c_{ik} e^{−j w n_k d_i}`` (exact, per link, parallel)."""
     for i in prange(d.size):
         out[i] = _correlate(spectrum[i], n0, w, d[i])
-
-
-def correlate_numpy(spectrum, n0, w, d):
-    """Plain-NumPy twin of :func:`correlate_kernel`."""
-    n = n0 + np.arange(spectrum.shape[1], dtype=np.float64)
-    return (spectrum * np.exp(-1j * w * d[:, None] * n[None, :])).sum(axis=1)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -248,14 +244,6 @@ def residual_kernel(spectrum, power, tx_index, n0, w, dist, gain, out):
             out[i, k] = spectrum[i, k]
         for p in range(P):
             _add_path(out[i], power[tx_index[i]], n0, w, dist[i, p], -np.conj(gain[i, p]))
-
-
-def residual_numpy(spectrum, power, tx_index, n0, w, dist, gain):
-    """Plain-NumPy twin of :func:`residual_kernel` (returns the array)."""
-    n = n0 + np.arange(spectrum.shape[1], dtype=np.float64)
-    phase = np.exp(1j * w * dist[:, :, None] * n[None, None, :])  # [n_links, P, N]
-    contrib = (np.conj(gain)[:, :, None] * phase).sum(axis=1) * power[tx_index]
-    return spectrum - contrib
 
 
 # ---------------------------------------------------------------------------------------------
@@ -326,60 +314,3 @@ def sage_kernel(
             n_search,
             n_newton,
         )
-
-
-def _correlate_numpy(x, n, w, d):
-    e = x * np.exp(-1j * w * n * d)
-    return e.sum(), (n * e).sum(), (n * n * e).sum()
-
-
-def sage_numpy(
-    spectrum,
-    power,
-    tx_index,
-    energy,
-    n0,
-    w,
-    dist,
-    gain,
-    n_active,
-    n_iter,
-    spacing,
-    n_search,
-    n_newton,
-):
-    """Plain-NumPy twin of :func:`sage_kernel` (returns new ``dist, gain``)."""
-    dist = np.array(dist, dtype=np.float64)
-    gain = np.array(gain, dtype=np.complex128)
-    n = n0 + np.arange(spectrum.shape[1], dtype=np.float64)
-
-    def contrib(i, d, a):
-        return power[tx_index[i]] * np.conj(a) * np.exp(1j * w * n * d)
-
-    for i in range(dist.shape[0]):
-        d, a, P = dist[i], gain[i], int(n_active[i])
-        e = spectrum[i] - sum((contrib(i, d[p], a[p]) for p in range(P)), 0j)
-        for _ in range(n_iter):
-            for p in range(P):
-                e = e + contrib(i, d[p], a[p])
-                cand = d[p] + spacing * np.arange(-n_search, n_search + 1)
-                g = np.abs(np.exp(-1j * w * np.outer(cand, n)) @ e) ** 2
-                d0 = cand[int(np.argmax(g))]
-                dn = d0
-                for _k in range(n_newton):
-                    T0, T1, T2 = _correlate_numpy(e, n, w, dn)
-                    F1, F2 = -1j * w * T1, -(w * w) * T2
-                    g1 = 2.0 * (np.conj(T0) * F1).real
-                    g2 = 2.0 * (abs(F1) ** 2 + (np.conj(T0) * F2).real)
-                    if not g2 < 0.0:
-                        break
-                    step = float(np.clip(-g1 / g2, -0.5 * spacing, 0.5 * spacing))
-                    dn += step
-                    if abs(step) < 1e-9 * spacing:
-                        break
-                if abs(dn - d0) > spacing:
-                    dn = d0
-                d[p] = dn
-                a[p] = np.conj(_correlate_numpy(e, n, w, dn)[0]) / energy[i]
-                e = e - contrib(i, d[p], a[p])
-    return dist, gain

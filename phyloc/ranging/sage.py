@@ -72,7 +72,6 @@ from phyloc.ranging.results import (
     window_indices,
 )
 
-_BACKENDS = ("numba", "numpy")
 _FFT_CHUNK = 64
 
 
@@ -90,7 +89,7 @@ def _padded_power(res: np.ndarray, L2: int, k2: np.ndarray) -> np.ndarray:
     return out
 
 
-def _residual(table, dist, gain, backend, spectrum=None):
+def _residual(table, dist, gain, spectrum=None):
     """``c − Σ_p (path p)`` per link (``spectrum`` defaults to the table's c)."""
     system = table.system
     c = np.ascontiguousarray(table.spectrum if spectrum is None else spectrum)
@@ -103,11 +102,9 @@ def _residual(table, dist, gain, backend, spectrum=None):
         np.ascontiguousarray(dist, dtype=np.float64),
         np.ascontiguousarray(gain, dtype=np.complex128),
     )
-    if backend == "numba":
-        out = np.empty_like(c)
-        _kernels.residual_kernel(*args, out)
-        return out
-    return _kernels.residual_numpy(*args)
+    out = np.empty_like(c)
+    _kernels.residual_kernel(*args, out)
+    return out
 
 
 def sic_init(
@@ -120,7 +117,6 @@ def sic_init(
     init_sweeps: int = 1,
     search_steps: int = 2,
     n_newton: int = 4,
-    backend: str = "numba",
 ):
     """Initial paths by successive interference cancellation (module docstring).
 
@@ -181,12 +177,11 @@ def sic_init(
                 search_steps=search_steps,
                 n_newton=n_newton,
                 n_active=n_active,
-                backend=backend,
             )
             dist[:, : p + 1] = dp
             gain[:, : p + 1] = ap
         if p + 1 < P:  # the residual of every path so far (inactive ones have α = 0)
-            res = _residual(table, dist[:, : p + 1], gain[:, : p + 1], backend)
+            res = _residual(table, dist[:, : p + 1], gain[:, : p + 1])
     return dist, gain, n_active
 
 
@@ -199,7 +194,6 @@ def sage_sweeps(
     search_steps: int = 2,
     n_newton: int = 4,
     n_active=None,
-    backend: str = "numba",
 ):
     """``n_iter`` SAGE sweeps from initial paths ``dist, gain [n_links, P]`` (returns new
     arrays; module docstring). With ``n_active [n_links]`` only the first ``n_active[i]`` paths
@@ -219,10 +213,8 @@ def sage_sweeps(
         n_active = np.full(d.shape[0], d.shape[1], dtype=np.int64)
     n_active = np.ascontiguousarray(n_active, dtype=np.int64)
     rest = (int(n_iter), table.spacing_m, int(search_steps), int(n_newton))
-    if backend == "numba":
-        _kernels.sage_kernel(*args, d, a, n_active, *rest)
-        return d, a
-    return _kernels.sage_numpy(*args, d, a, n_active, *rest)
+    _kernels.sage_kernel(*args, d, a, n_active, *rest)
+    return d, a
 
 
 def sage(
@@ -240,7 +232,6 @@ def sage(
     init_beta: float = 4.0,
     init_sweeps: int = 1,
     prune_sweeps: int = 2,
-    backend: str = "numba",
 ) -> RangeEstimates:
     """LOS range from SAGE estimates of ``n_paths`` = L+1 paths per link (module docstring).
 
@@ -272,8 +263,6 @@ def sage(
     prune_sweeps : int
         After the sweeps, paths below the noise threshold are dropped and the others
         re-estimated with this many sweeps (default 2; 0 keeps every path in the fit).
-    backend : {"numba", "numpy"}
-        The Numba kernels (default) or their plain-NumPy twins (reference, slow).
 
     Returns
     -------
@@ -299,8 +288,6 @@ def sage(
     table = check_table(table)
     kappa = check_noise_factor(noise_factor)
     check_variance(variance)
-    if backend not in _BACKENDS:
-        raise ValidationError("backend", backend, f"one of {', '.join(_BACKENDS)}")
     n_iter = v.integer("n_iter", n_iter, minimum=0)
     search_steps = v.integer("search_steps", search_steps, minimum=0)
     n_newton = v.integer("n_newton", n_newton, minimum=0)
@@ -319,7 +306,6 @@ def sage(
         init_sweeps=init_sweeps,
         search_steps=search_steps,
         n_newton=n_newton,
-        backend=backend,
     )
     dist, gain = sage_sweeps(
         table,
@@ -329,7 +315,6 @@ def sage(
         search_steps=search_steps,
         n_newton=n_newton,
         n_active=n_active,
-        backend=backend,
     )
 
     # model order: paths below the noise threshold are dropped, the rest re-estimated
@@ -355,7 +340,6 @@ def sage(
             search_steps=search_steps,
             n_newton=n_newton,
             n_active=active.sum(axis=1),
-            backend=backend,
         )
         pw = gain.real**2 + gain.imag**2
     in_win = (dist >= lo) & (dist <= hi)
