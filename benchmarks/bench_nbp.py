@@ -1,27 +1,29 @@
-"""POA / NBP / PBP / WLS benchmarks on the static network of the POA paper (§V-A).
+"""POA / NBP / PBP / WLS benchmarks on the static network of the POA-NBP paper (§V-A).
 
-One topology of :func:`~phyloc.localization.static.static_ranges.paper_static_scenario`: 100 agents
+One topology of :func:`~phyloc.evaluation.static_scenarios.paper_static_scenario`: 100 agents
 and 13 anchors in a 100 m × 100 m square, r_com = 20 m, exponential range errors of mean
-0.38 m. POA uses N_E = 16 and N_FS = 2 (§V-B); its polygons are the proposals of POA-NBP.
-NBP runs ``N_ITER`` = 4 iterations (2 with ``quick``) with LSCV bandwidths, after a JIT
-warm-up. A *node-iteration* is one agent's belief update; its time is the mean of
-``time_per_node_s`` over the agents, best of iterations 2 … N_ITER: from iteration 2 on every
-agent with a path to an anchor sends messages (iteration 1 of the min-entropy proposal sees
-only anchor messages), and the best iteration, as in ``_timing.best_seconds``, is the one
-least disturbed by other load on the machine. The KDE work unit is eq. (8): N_S points ×
-N_S centres × 10 messages shaped like range messages (rings of radius 8–18 m, LSCV
-bandwidth), evaluated around the agent. Figures (names are the interface):
+0.38 m. POA uses N_E = 16 and N_FS = 2 (POA-NBP §V-B); its polygons are the proposals of
+POA-NBP (handed to the ``poa_nbp`` method through its prior).
+NBP runs ``N_ITER`` = 4 iterations (2 with ``quick``) with LSCV bandwidths, after a JIT warm-up. A
+*node-iteration* is one agent's belief update; its time is the mean of the per-agent update times
+(``Result.timing.agent_s``) over the agents, best of iterations 2 … N_ITER: from iteration 2 on
+every agent with a path to an anchor sends messages (iteration 1 of the min-entropy proposal sees
+only anchor messages), and the best iteration, as in ``_timing.best_seconds``, is the one least
+disturbed by other load on the machine. The KDE work unit is POA-NBP eq. (8): N_S points × N_S
+centres × 10 messages shaped like range messages (rings of radius 8–18 m, LSCV bandwidth), evaluated
+around the agent. Figures (names are the interface):
 
 ``poa.time_per_node_s``                      POA per agent, both iterations summed [s]
 ``poa.intersect_s``                          one :func:`intersect` of two 16-gons [s]
 ``poa.intersect_kernel_s``                   the same clipping, numba kernel alone [s]
-``poa.intersect_numpy_s``                    ... its NumPy twin [s]
+``poa.intersect_numpy_s``                    ... its NumPy twin (``tests/naive_static.py``) [s]
 ``poa.intersect_speedup_vs_numpy``           NumPy twin time / kernel time
 ``nbp.ns<N>.time_per_node_iteration_s``      POA-NBP (polygon proposal), N in 100 200 400 800 [s]
 ``nbp_min_entropy.ns<N>.time_per_node_iteration_s``   NBP with the min-entropy proposal [s]
 ``nbp.cost_exponent``                        d log(time) / d log(N_S) of POA-NBP (least squares)
 ``nbp_min_entropy.cost_exponent``            ... of min-entropy NBP
-``nbp.kde.ns<N>.time_s``                     one eq. (8) KDE evaluation, numba kernel, 1 thread [s]
+``nbp.kde.ns<N>.time_s``                     one POA-NBP eq. (8) KDE evaluation, numba kernel,
+                                             1 thread [s]
 ``nbp.kde.cost_exponent``                    d log(time) / d log(N_S) of the KDE (2: N_S²)
 ``nbp.kde.speedup_vs_numpy``                 NumPy twin time / kernel time at N_S = 200
 ``pbp.time_per_node_iteration_s``            Gaussian BP (PBP, n_inner = 3) [s]
@@ -34,6 +36,16 @@ message objects), O(N_S) sampling and an LSCV score that is quadratic up to 256 
 constant above. ``nbp.cost_exponent`` is therefore near 1 over 100 … 800 (the KDE is about
 a tenth of the time at N_S = 100 and well over half at 800); ``nbp.kde.cost_exponent`` shows the
 quadratic term alone.
+
+The NumPy twins are test code, loaded by :func:`benchmarks._reference.naive` from the source
+checkout's ``tests/naive_static.py``; without one the ``*numpy*`` / ``*speedup_vs_numpy``
+figures are not measured (``MISSING``).
+
+References
+----------
+.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+   Indoor Localization," IEEE Transactions on Signal and Information Processing over
+   Networks, vol. 5, no. 3, 2019 ("POA-NBP").
 """
 
 from __future__ import annotations
@@ -44,7 +56,9 @@ import numba
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from phyloc.evaluation.static_scenarios import paper_static_scenario
 from phyloc.localization.static import _polygon_kernels as PK
+from phyloc.localization.static._nbp_kernels import kde_logpdf_kernel
 from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
     WLSOptions,
@@ -53,19 +67,19 @@ from phyloc.localization.static.gaussian_bp import (
 )
 from phyloc.localization.static.nbp import (
     NBPOptions,
-    kde_logpdf_kernel,
-    kde_logpdf_numpy,
     lscv_bandwidth,
     range_message_samples,
     run_nbp,
 )
 from phyloc.localization.static.polygons import anchor_polygon, intersect, poa
-from phyloc.localization.static.static_ranges import ExponentialRangeError, paper_static_scenario
+from phyloc.localization.static.static_ranges import ExponentialRangeError
 from phyloc.reporting import format_table
 
 try:
+    from phyloc.benchmarks._reference import MISSING, naive
     from phyloc.benchmarks._timing import best_seconds
 except ImportError:  # run from the source tree by asv
+    from benchmarks._reference import MISSING, naive
     from benchmarks._timing import best_seconds
 
 N_AGENTS = 100
@@ -78,7 +92,7 @@ PROPOSALS = {"nbp": "polygon", "nbp_min_entropy": "min_entropy"}
 
 
 def make_scenario(seed: int = 0, n_agents: int = N_AGENTS):
-    """The §V-A network and its POA polygons (N_E = 16, N_FS = 2)."""
+    """The POA-NBP §V-A network and its POA polygons (N_E = 16, N_FS = 2)."""
     rng = np.random.default_rng(seed)
     sc = paper_static_scenario(rng, n_agents=n_agents)
     res = _poa(sc, rng)
@@ -86,10 +100,11 @@ def make_scenario(seed: int = 0, n_agents: int = N_AGENTS):
 
 
 def _poa(sc, rng):
+    meas = sc.measurements()
     return poa(
-        sc.positions,
-        sc.ranges,
-        sc.is_anchor,
+        meas.positions,
+        meas.ranges,
+        meas.is_anchor,
         rng=rng,
         n_edges=N_EDGES,
         n_iterations=N_FS,
@@ -99,16 +114,8 @@ def _poa(sc, rng):
 
 def _run_nbp(sc, polygons, n_samples, proposal, n_iterations, seed=1):
     opt = NBPOptions(n_samples=n_samples, n_iterations=n_iterations, proposal=proposal)
-    return run_nbp(
-        sc.ranges,
-        sc.is_anchor,
-        sc.anchor_positions,
-        np.random.default_rng(seed),
-        opt,
-        region=sc.region,
-        polygons=polygons if proposal == "polygon" else None,
-        error_model=sc.error_model,
-    )
+    prior = sc.prior(polygons=list(polygons) if proposal == "polygon" else None)
+    return run_nbp(sc.measurements(), prior, np.random.default_rng(seed), opt)
 
 
 def warm_up() -> None:
@@ -116,22 +123,24 @@ def warm_up() -> None:
     sc, res = make_scenario(seed=99, n_agents=10)
     for proposal in PROPOSALS.values():
         _run_nbp(sc, res.polygons, 300, proposal, 2)  # > 256 samples: the LSCV subset path too
-    run_gaussian_bp(sc.ranges, sc.is_anchor, sc.anchor_positions, region=sc.region)
-    run_wls(sc.ranges, sc.is_anchor, sc.anchor_positions, region=sc.region)
+    run_gaussian_bp(sc.measurements(), sc.prior())
+    run_wls(sc.measurements(), sc.prior())
     pts, centers, lw, h = kde_case(50)
     kde_logpdf_kernel(pts, centers, lw, h, np.empty((centers.shape[0], pts.shape[0])))
 
 
-def _steady(time_per_node_s: np.ndarray) -> float:
-    """Time per node-iteration: mean over agents, best of iterations 2 … L (1 if L = 1)."""
-    t = time_per_node_s[1:] if time_per_node_s.shape[0] > 1 else time_per_node_s
-    return float(t.mean(axis=1).min())
+def _steady(agent_s: np.ndarray) -> float:
+    """Time per node-iteration from ``Result.timing.agent_s`` (mean over agents per
+    iteration): the best of iterations 2 … L (1 if L = 1)."""
+    t = agent_s[1:] if agent_s.shape[0] > 1 else agent_s
+    return float(t.min())
 
 
 def kde_case(n_samples: int, n_messages: int = KDE_MESSAGES, seed: int = 0):
-    """Inputs of one eq. (8) evaluation: ``(points [N_S, 2], centers [M, N_S, 2], log_weights
-    [M, N_S], bandwidths [M])`` for an agent at the origin with ``M`` agent neighbours 8–18 m
-    away (beliefs of 1 m spread), its proposal samples uniform in a 6 m × 6 m square."""
+    """Inputs of one POA-NBP eq. (8) evaluation: ``(points [N_S, 2], centers [M, N_S, 2],
+    log_weights [M, N_S], bandwidths [M])`` for an agent at the origin with ``M`` agent
+    neighbours 8–18 m away (beliefs of 1 m spread), its proposal samples uniform in a
+    6 m × 6 m square."""
     rng = np.random.default_rng(seed)
     model = ExponentialRangeError()
     ang = rng.uniform(0.0, 2.0 * math.pi, n_messages)
@@ -181,7 +190,13 @@ class TimeIntersect:
 
     def setup(self, backend):
         _, _, self.args = intersect_case()
-        self.fn = PK.clip_groups_kernel if backend == "numba" else PK.clip_groups_numpy
+        if backend == "numba":
+            self.fn = PK.clip_groups_kernel
+        else:
+            twin = naive("naive_static")
+            if twin is None:
+                raise NotImplementedError(MISSING)  # asv skips the parameter
+            self.fn = twin.clip_groups_numpy
         self.fn(*self.args)
 
     def time_intersect(self, backend):
@@ -189,7 +204,7 @@ class TimeIntersect:
 
 
 class TimeKDE:
-    """asv: the eq. (8) KDE, N_S points × N_S centres × 10 messages."""
+    """asv: the POA-NBP eq. (8) KDE, N_S points × N_S centres × 10 messages."""
 
     params = [list(SAMPLE_SWEEP), ["numba", "numpy"]]
     param_names = ["n_samples", "backend"]
@@ -197,13 +212,18 @@ class TimeKDE:
     def setup(self, n_samples, backend):
         self.pts, self.centers, self.lw, self.h = kde_case(n_samples)
         self.out = np.empty((self.centers.shape[0], self.pts.shape[0]))
+        self.twin = None
+        if backend == "numpy":
+            self.twin = naive("naive_static")
+            if self.twin is None:
+                raise NotImplementedError(MISSING)  # asv skips the parameter
         self.time_kde(n_samples, backend)
 
     def time_kde(self, n_samples, backend):
         if backend == "numba":
             kde_logpdf_kernel(self.pts, self.centers, self.lw, self.h, self.out)
         else:
-            kde_logpdf_numpy(self.pts, self.centers, self.lw, self.h)
+            self.twin.kde_logpdf_numpy(self.pts, self.centers, self.lw, self.h)
 
 
 class TimeNBP:
@@ -228,7 +248,7 @@ class TimeBaselines:
     def setup(self):
         self.limits = threadpool_limits(limits=1, user_api="blas")
         self.sc, _ = make_scenario()
-        self.args = (self.sc.ranges, self.sc.is_anchor, self.sc.anchor_positions)
+        self.args = (self.sc.measurements(), self.sc.prior(), None)
         self.time_pbp()
         self.time_wls()
 
@@ -236,10 +256,10 @@ class TimeBaselines:
         self.limits.restore_original_limits()
 
     def time_pbp(self):
-        run_gaussian_bp(*self.args, GaussianBPOptions(n_iterations=10), region=self.sc.region)
+        run_gaussian_bp(*self.args, GaussianBPOptions(n_iterations=10))
 
     def time_wls(self):
-        run_wls(*self.args, WLSOptions(n_iterations=10), region=self.sc.region)
+        run_wls(*self.args, WLSOptions(n_iterations=10))
 
 
 # -- phyloc bench -------------------------------------------------------------------------------
@@ -265,6 +285,7 @@ def _report(quick: bool) -> dict[str, float]:
     warm_up()
     sc, _ = make_scenario()
     fig: dict[str, float] = {"nbp.n_agents": sc.agents.size, "nbp.n_iterations": n_iter}
+    twin = naive("naive_static")
 
     # POA: best of `repeat` runs of the per-agent time (fresh offsets each run)
     runs = [_poa(sc, np.random.default_rng(r)) for r in range(repeat)]
@@ -275,14 +296,15 @@ def _report(quick: bool) -> dict[str, float]:
     fig["poa.intersect_kernel_s"] = best_seconds(
         lambda: PK.clip_groups_kernel(*args), repeat=repeat, min_time=0.2
     )
-    fig["poa.intersect_numpy_s"] = best_seconds(
-        lambda: PK.clip_groups_numpy(*args), repeat=repeat, min_time=0.2
-    )
-    fig["poa.intersect_speedup_vs_numpy"] = (
-        fig["poa.intersect_numpy_s"] / fig["poa.intersect_kernel_s"]
-    )
+    if twin is not None:
+        fig["poa.intersect_numpy_s"] = best_seconds(
+            lambda: twin.clip_groups_numpy(*args), repeat=repeat, min_time=0.2
+        )
+        fig["poa.intersect_speedup_vs_numpy"] = (
+            fig["poa.intersect_numpy_s"] / fig["poa.intersect_kernel_s"]
+        )
 
-    # the KDE of eq. (8) alone (a serial kernel)
+    # the KDE of POA-NBP eq. (8) alone (a serial kernel)
     t_kde = []
     for ns in SAMPLE_SWEEP:
         pts, centers, lw, h = kde_case(ns)
@@ -294,9 +316,9 @@ def _report(quick: bool) -> dict[str, float]:
         )
         fig[f"nbp.kde.ns{ns}.time_s"] = t
         t_kde.append(t)
-        if ns == 200:
+        if ns == 200 and twin is not None:
             t_np = best_seconds(
-                lambda pts=pts, c=centers, lw=lw, h=h: kde_logpdf_numpy(pts, c, lw, h),
+                lambda pts=pts, c=centers, lw=lw, h=h: twin.kde_logpdf_numpy(pts, c, lw, h),
                 repeat=max(2, repeat - 2),
             )
             fig["nbp.kde.speedup_vs_numpy"] = t_np / t
@@ -307,18 +329,17 @@ def _report(quick: bool) -> dict[str, float]:
         ts = []
         for ns in SAMPLE_SWEEP:
             res = _run_nbp(sc, polygons, ns, proposal, n_iter)
-            t = _steady(res.time_per_node_s)
+            t = _steady(res.timing.agent_s)
             fig[f"{name}.ns{ns}.time_per_node_iteration_s"] = t
             ts.append(t)
         fig[f"{name}.cost_exponent"] = _slope(SAMPLE_SWEEP, ts)
 
     # parametric baselines (cheap: 10 iterations each)
-    args = (sc.ranges, sc.is_anchor, sc.anchor_positions)
-    kw = {"region": sc.region, "error_model": sc.error_model}
-    pbp = run_gaussian_bp(*args, GaussianBPOptions(n_iterations=10), **kw)
-    fig["pbp.time_per_node_iteration_s"] = _steady(pbp.time_per_node_s)
-    wls = run_wls(*args, WLSOptions(n_iterations=10), **kw)
-    fig["wls.time_per_node_iteration_s"] = _steady(wls.time_per_node_s)
+    args = (sc.measurements(), sc.prior(), None)
+    pbp = run_gaussian_bp(*args, GaussianBPOptions(n_iterations=10))
+    fig["pbp.time_per_node_iteration_s"] = _steady(pbp.timing.agent_s)
+    wls = run_wls(*args, WLSOptions(n_iterations=10))
+    fig["wls.time_per_node_iteration_s"] = _steady(wls.timing.agent_s)
     return fig
 
 
@@ -358,10 +379,15 @@ def summarize(fig: dict) -> str:
         ("WLS (joint)", ms * fig["wls.time_per_node_iteration_s"], "per node-iteration"),
     ]
     t2 = format_table(rows2, ["method", "time [ms]", ""])
+    if "poa.intersect_speedup_vs_numpy" in fig:
+        ratios = (
+            f"{fig['poa.intersect_speedup_vs_numpy']:.3g}x the NumPy twin); KDE kernel "
+            f"{fig['nbp.kde.speedup_vs_numpy']:.3g}x its NumPy twin at N_S = 200"
+        )
+    else:
+        ratios = f"NumPy twin MISSING)\nMISSING: {MISSING}"
     t3 = (
         f"one intersection of two 16-gons: {1e6 * fig['poa.intersect_s']:.3g} us "
-        f"(kernel {1e6 * fig['poa.intersect_kernel_s']:.3g} us, "
-        f"{fig['poa.intersect_speedup_vs_numpy']:.3g}x the NumPy twin); "
-        f"KDE kernel {fig['nbp.kde.speedup_vs_numpy']:.3g}x its NumPy twin at N_S = 200"
+        f"(kernel {1e6 * fig['poa.intersect_kernel_s']:.3g} us, {ratios}"
     )
     return f"{t1}\n\n{t2}\n\n{t3}"

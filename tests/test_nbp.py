@@ -4,9 +4,11 @@ import math
 
 import numpy as np
 import pytest
+from naive_static import kde_logpdf_numpy, lscv_grid_numpy
 from scipy import stats
 
 from phyloc.errors import ValidationError
+from phyloc.evaluation.static_scenarios import paper_static_scenario, simulate_ranges
 from phyloc.localization.static import nbp
 from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
@@ -30,13 +32,26 @@ from phyloc.localization.static.static_ranges import (
     INFEASIBLE_LOG_PENALTY,
     ExponentialRangeError,
     GaussianRangeError,
+    StaticMeasurements,
+    StaticPrior,
     check_static_network,
     convergence_iteration,
     exponential_loglik,
     gaussian_loglik,
-    paper_static_scenario,
-    simulate_ranges,
 )
+
+
+def _meas(Z, anc, anchor_pos, model=None):
+    return StaticMeasurements(Z, anc, anchor_pos, model)
+
+
+def _errors(res, pos, anc):
+    """``[n_iter, n_agents]`` errors against the true agent positions (evaluation only)."""
+    return np.linalg.norm(res.estimates - pos[~anc][None], axis=-1)
+
+
+def _weights(res):
+    return np.exp(res.log_weights)
 
 
 class RectPolygon:
@@ -144,8 +159,13 @@ def test_kde_kernel_matches_numpy_twin_including_zero_weights_and_far_points(rng
     weights[0, :10] = 0.0  # zero weights (log −inf)
     points = np.vstack([rng.normal(size=(P - 2, 2)) * 4, [[1e3, -1e3], [0.0, 0.0]]])
     h = np.array([0.01, 0.5, 3.0])  # tiny bandwidth: far points are ~1e10 below the max
-    a = kde_logpdf(points, centers, weights, h, backend="numba")
-    b = kde_logpdf(points, centers, weights, h, backend="numpy")
+    a = kde_logpdf(points, centers, weights, h)
+    lw = np.log(
+        weights / weights.sum(axis=1, keepdims=True),
+        where=weights > 0,
+        out=np.full_like(weights, -np.inf),
+    )
+    b = kde_logpdf_numpy(points, centers, lw, h)
     assert np.all(np.isfinite(a))
     np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-9)
     # one centre: the exact Gaussian log-density
@@ -161,12 +181,15 @@ def test_lscv_kernel_matches_numpy_twin_and_picks_a_sensible_bandwidth(rng):
     out = np.empty(nbp.LSCV_GRID)
     nbp.lscv_grid_kernel(x, w, 0.8, out)
     np.testing.assert_allclose(
-        out, nbp.lscv_grid_numpy(x, w, 0.8, nbp.LSCV_GRID), rtol=1e-9, atol=1e-12
+        out, lscv_grid_numpy(x, w, 0.8, nbp.LSCV_GRID), rtol=1e-9, atol=1e-12
     )
     # Gaussian data: the normal-reference (Silverman) bandwidth is near-optimal, LSCV agrees
     h_s = silverman_bandwidth(x)
-    h_cv = lscv_bandwidth(x, max_samples=300, backend="numba")
-    assert h_cv == lscv_bandwidth(x, max_samples=300, backend="numpy")
+    h_cv = lscv_bandwidth(x, max_samples=300)
+    # the twin's score picks the same grid point
+    h0 = math.sqrt(2.0) * h_s
+    ref = lscv_grid_numpy(x, np.full(300, 1 / 300), h0, nbp.LSCV_GRID)
+    assert h_cv == h0 * 0.5 ** (int(np.argmin(ref)) / 2.0)
     assert 0.35 * h_s < h_cv < 1.5 * h_s
     # a thin ring (a range message): LSCV is much narrower than Silverman's rule
     y, wy = range_message_samples(np.zeros((400, 2)), 10.0, GaussianRangeError(0.1), rng)
@@ -188,17 +211,18 @@ def test_nbp_four_anchors_small_gaussian_noise(options, rng):
     model = GaussianRangeError(sig)
     pos, anc, Z = _four_anchor(rng, model)
     res = run_nbp(
-        Z,
-        anc,
-        pos[anc],
+        _meas(Z, anc, pos[anc], model),
+        StaticPrior(REGION),
         rng,
         NBPOptions(n_samples=1000, n_iterations=3, **options),
-        region=REGION,
-        error_model=model,
     )
-    assert res.estimates.shape == (3, 1, 2)
-    assert res.errors(pos)[-1, 0] < 4 * sig
-    assert np.all(res.ess[:, 0] >= 1.0)
+    assert res.estimates.shape == (3, 1, 2) and res.covariances.shape == (3, 1, 2, 2)
+    assert _errors(res, pos, anc)[-1, 0] < 4 * sig
+    assert np.all(res.diagnostics["ess"][:, 0] >= 1.0)
+    # the published covariance is the weighted sample covariance of the last update
+    w = _weights(res)[0]
+    dev = res.particles[0] - w @ res.particles[0]
+    np.testing.assert_allclose(res.covariances[-1, 0], (dev * w[:, None]).T @ dev, rtol=1e-9)
 
 
 def test_wls_matches_brute_force_grid_minimum_and_gbp_is_close(rng):
@@ -206,16 +230,9 @@ def test_wls_matches_brute_force_grid_minimum_and_gbp_is_close(rng):
     model = GaussianRangeError(sig)
     pos, anc, Z = _four_anchor(rng, model)
     Wm = np.where(np.isfinite(Z), rng.uniform(0.5, 2.0, Z.shape), 0.0)  # unequal weights
-    res = run_wls(
-        Z,
-        anc,
-        pos[anc],
-        WLSOptions(n_iterations=30),
-        region=REGION,
-        error_model=model,
-        link_weights=Wm,
-    )
-    est = res.final[0]
+    meas = _meas(Z, anc, pos[anc], model)
+    res = run_wls(meas, StaticPrior(REGION), None, WLSOptions(n_iterations=30), link_weights=Wm)
+    est = res.estimates[-1, 0]
     net = check_static_network(Z, anc, pos[anc])
     rows, cols = np.nonzero(np.isfinite(net.ranges))
     z, w = Z[rows, cols], Wm[rows, cols]
@@ -236,18 +253,16 @@ def test_wls_matches_brute_force_grid_minimum_and_gbp_is_close(rng):
     assert np.linalg.norm(est - AGENT) < 4 * sig
     # distributed WLS converges to the same point with one agent
     dist = run_wls(
-        Z,
-        anc,
-        pos[anc],
+        meas,
+        StaticPrior(REGION),
+        None,
         WLSOptions(mode="distributed", n_iterations=30),
-        region=REGION,
-        error_model=model,
         link_weights=Wm,
     )
-    assert np.linalg.norm(dist.final[0] - est) < 1e-4
-    gbp = run_gaussian_bp(Z, anc, pos[anc], region=REGION, error_model=model)
-    assert np.linalg.norm(gbp.final[0] - AGENT) < 4 * sig
-    assert gbp.converged_iteration is not None
+    assert np.linalg.norm(dist.estimates[-1, 0] - est) < 1e-4
+    gbp = run_gaussian_bp(meas, StaticPrior(REGION))
+    assert np.linalg.norm(gbp.estimates[-1, 0] - AGENT) < 4 * sig
+    assert gbp.diagnostics["converged_iteration"] is not None
     assert np.all(np.linalg.eigvalsh(gbp.covariances[-1, 0]) > 0)
 
 
@@ -312,22 +327,15 @@ def test_isolated_agent_keeps_a_uniform_belief(rng):
     region = (-5.0, -5.0, 45.0, 45.0)
     Z = simulate_ranges(pos, 25.0, model, rng)
     assert np.isnan(Z[5]).all() and np.isnan(Z[:, 5]).all()
-    res = run_nbp(
-        Z,
-        anc,
-        pos[anc],
-        rng,
-        NBPOptions(n_samples=300, n_iterations=3),
-        region=region,
-        error_model=model,
-    )
+    meas = _meas(Z, anc, pos[anc], model)
+    res = run_nbp(meas, StaticPrior(region), rng, NBPOptions(n_samples=300, n_iterations=3))
     assert np.all(np.isfinite(res.estimates))
-    np.testing.assert_allclose(res.final[1], [20.0, 20.0], atol=3.0)  # centre ± MC error
-    s = res.samples[1]
-    assert s[:, 0].std() > 10 and res.ess[:, 1].max() == 0.0  # never updated
+    np.testing.assert_allclose(res.estimates[-1, 1], [20.0, 20.0], atol=3.0)  # centre ± MC
+    s = res.particles[1]
+    assert s[:, 0].std() > 10 and res.diagnostics["ess"][:, 1].max() == 0.0  # never updated
     for r in (
-        run_gaussian_bp(Z, anc, pos[anc], region=region, error_model=model),
-        run_wls(Z, anc, pos[anc], region=region, error_model=model),
+        run_gaussian_bp(meas, StaticPrior(region)),
+        run_wls(meas, StaticPrior(region)),
     ):
         assert np.all(np.isfinite(r.estimates))
 
@@ -340,50 +348,36 @@ def test_coincident_nodes_and_extreme_small_noise_stay_finite(model, rng):
     anc = np.zeros(len(pos), bool)
     anc[:4] = True
     Z = simulate_ranges(pos, 100.0, model, rng)
+    meas = _meas(Z, anc, pos[anc], model)
     for proposal in ("min_entropy", "mixture", "parsimonious"):
         res = run_nbp(
-            Z,
-            anc,
-            pos[anc],
+            meas,
+            StaticPrior(REGION),
             rng,
             NBPOptions(n_samples=100, n_iterations=3, proposal=proposal),
-            region=REGION,
-            error_model=model,
         )
-        assert np.all(np.isfinite(res.estimates)) and np.all(np.isfinite(res.weights))
-        assert np.all(np.isfinite(res.samples))
-        assert res.errors(pos)[-1].max() < 5.0
-    gbp = run_gaussian_bp(Z, anc, pos[anc], region=REGION, error_model=model)
-    wls = run_wls(Z, anc, pos[anc], region=REGION, error_model=model)
+        assert np.all(np.isfinite(res.estimates)) and np.all(np.isfinite(_weights(res)))
+        assert np.all(np.isfinite(res.particles)) and np.all(np.isfinite(res.covariances))
+        assert _errors(res, pos, anc)[-1].max() < 5.0
+    gbp = run_gaussian_bp(meas, StaticPrior(REGION))
+    wls = run_wls(meas, StaticPrior(REGION))
     for r in (gbp, wls):
         assert np.all(np.isfinite(r.estimates))
     assert np.all(np.isfinite(gbp.covariances))
-    assert wls.errors(pos)[-1].max() < 0.05
+    assert _errors(wls, pos, anc)[-1].max() < 0.05
 
 
 # ---- (6) reproducibility -----------------------------------------------------------------------
 def test_nbp_is_reproducible_for_a_seed():
     sc = paper_static_scenario(np.random.default_rng(7), n_agents=15)
-    args = (sc.ranges, sc.is_anchor, sc.anchor_positions)
+    meas, prior = sc.measurements(), sc.prior()
     opt = NBPOptions(n_samples=60, n_iterations=3)
-    a = run_nbp(*args, np.random.default_rng(11), opt, region=sc.region)
-    b = run_nbp(*args, np.random.default_rng(11), opt, region=sc.region)
-    c = run_nbp(*args, np.random.default_rng(12), opt, region=sc.region)
+    a = run_nbp(meas, prior, np.random.default_rng(11), opt)
+    b = run_nbp(meas, prior, np.random.default_rng(11), opt)
+    c = run_nbp(meas, prior, np.random.default_rng(12), opt)
     np.testing.assert_array_equal(a.estimates, b.estimates)
-    np.testing.assert_array_equal(a.samples, b.samples)
+    np.testing.assert_array_equal(a.particles, b.particles)
     assert not np.array_equal(a.estimates, c.estimates)
-    # the NumPy backend gives the same run (kernels agree to rounding; the LSCV argmin and the
-    # resampling decisions are discrete, so compare loosely)
-    d = run_nbp(
-        *args, np.random.default_rng(11), dataclass_replace(opt, backend="numpy"), region=sc.region
-    )
-    assert np.median(np.abs(d.estimates - a.estimates)) < 1e-6
-
-
-def dataclass_replace(opt, **kw):
-    import dataclasses
-
-    return dataclasses.replace(opt, **kw)
 
 
 # ---- (7) polygon proposal ----------------------------------------------------------------------
@@ -391,70 +385,57 @@ def test_polygon_proposal_never_yields_samples_outside_the_polygon(rng):
     model = ExponentialRangeError()
     pos, anc, Z = _four_anchor(rng, model, extra=[[12.0, 6.0]])
     polys = [RectPolygon(5.0, 9.0, 9.5, 13.0), RectPolygon(10.0, 4.0, 14.0, 8.0, leak=0.3)]
+    meas = _meas(Z, anc, pos[anc], model)
     res = run_nbp(
-        Z,
-        anc,
-        pos[anc],
+        meas,
+        StaticPrior(REGION, polygons=polys, polygon_time_per_node_s=0.5),
         rng,
         NBPOptions(n_samples=300, n_iterations=4, proposal="polygon"),
-        region=REGION,
-        polygons=polys,
-        error_model=model,
     )
+    assert res.diagnostics["support"] == "prior"
+    assert res.diagnostics["setup_time_per_node_s"] == 0.5
     for a, poly in enumerate(polys):
-        inside = poly.contains(res.samples[a])
-        assert np.all(res.weights[a][~inside] == 0.0)  # the leaky sampler's outliers: weight 0
-        assert np.all(inside[res.weights[a] > 0])
-        assert poly.contains(res.final[a][None])[0]
-    assert not polys[1].contains(res.samples[1]).all()  # the leak did happen
-    assert res.errors(pos)[-1].max() < 1.0
+        inside = poly.contains(res.particles[a])
+        w = _weights(res)[a]
+        assert np.all(w[~inside] == 0.0)  # the leaky sampler's outliers: weight 0
+        assert np.all(inside[w > 0])
+        assert poly.contains(res.estimates[-1, a][None])[0]
+    assert not polys[1].contains(res.particles[1]).all()  # the leak did happen
+    assert _errors(res, pos, anc)[-1].max() < 1.0
     # also accepted per node and as a dict; missing polygons mean "uniform over the region"
+    opt = NBPOptions(n_samples=50, n_iterations=1, proposal="polygon")
     per_node = [None] * 4 + polys
-    r2 = run_nbp(
-        Z,
-        anc,
-        pos[anc],
-        np.random.default_rng(1),
-        NBPOptions(n_samples=50, n_iterations=1, proposal="polygon"),
-        region=REGION,
-        polygons=per_node,
-        error_model=model,
-    )
+    r2 = run_nbp(meas, StaticPrior(REGION, polygons=per_node), np.random.default_rng(1), opt)
     r3 = run_nbp(
-        Z,
-        anc,
-        pos[anc],
+        meas,
+        StaticPrior(REGION, polygons={4: polys[0], 5: polys[1]}),
         np.random.default_rng(1),
-        NBPOptions(n_samples=50, n_iterations=1, proposal="polygon"),
-        region=REGION,
-        polygons={4: polys[0], 5: polys[1]},
-        error_model=model,
+        opt,
     )
     np.testing.assert_array_equal(r2.estimates, r3.estimates)
 
 
-# ---- the §V network: NBP converges and beats the uninformed start -----------------------------
+# ---- the POA-NBP §V network: NBP converges and beats the uninformed start ---------------------
 def test_nbp_cooperation_improves_a_sparse_anchor_network():
     """5 anchors, 30 agents in 60 m × 60 m, r_com = 20 m: most agents need their neighbours."""
     rng = np.random.default_rng(4)
     units = np.array([[1, 1], [5, 1], [1, 5], [5, 5], [3, 3]]) / 6.0
     sc = paper_static_scenario(rng, n_agents=30, side_m=60.0, anchor_units=units)
     res = run_nbp(
-        sc.ranges,
-        sc.is_anchor,
-        sc.anchor_positions,
+        sc.measurements(),
+        sc.prior(),
         rng,
         NBPOptions(n_samples=150, n_iterations=6, proposal="min_entropy"),
-        region=sc.region,
     )
-    err = res.errors(sc.positions)
+    err = _errors(res, sc.positions, sc.is_anchor)
     assert err[-1].mean() < 0.6 * err[0].mean() and np.median(err[-1]) < 3.0
-    assert res.converged_iteration is not None and 2 <= res.converged_iteration <= 6
-    assert res.time_per_node_s.shape == (6, 30) and np.all(res.time_per_node_s > 0)
-    assert res.time_to_convergence_per_node_s() > 0
-    start = heuristic_start(
-        check_static_network(sc.ranges, sc.is_anchor, sc.anchor_positions), sc.region
-    )
+    conv = res.diagnostics["converged_iteration"]
+    assert conv is not None and 2 <= conv <= 6
+    t = res.diagnostics["agent_time_s"]
+    assert t.shape == (6, 30) and np.all(t > 0)
+    np.testing.assert_allclose(res.timing.agent_s, t.mean(axis=1))
+    assert res.timing.agent_iterations == 180 and res.timing.wall_s >= res.timing.step_s.sum()
+    start = heuristic_start(sc.measurements(), sc.region)
     assert start.shape == (30, 2) and np.all(np.isfinite(start))
 
 
@@ -477,26 +458,27 @@ def test_invalid_inputs_name_the_field(rng):
         NBPOptions(uniform_fraction=1.5)
     with pytest.raises(ValidationError, match="bandwidth"):
         NBPOptions(bandwidth=-1.0)
+    meas = _meas(Z, anc, pos[anc])
     with pytest.raises(ValidationError, match="polygons"):
-        run_nbp(Z, anc, pos[anc], rng, NBPOptions(proposal="polygon"), region=REGION)
+        run_nbp(meas, StaticPrior(REGION), rng, NBPOptions(proposal="polygon"))
     with pytest.raises(ValidationError, match="polygons"):
-        run_nbp(
-            Z,
-            anc,
-            pos[anc],
-            rng,
-            NBPOptions(proposal="polygon"),
-            region=REGION,
-            polygons=[object()],
-        )
+        run_nbp(meas, StaticPrior(REGION, polygons=[object()]), rng, NBPOptions(proposal="polygon"))
+    with pytest.raises(ValidationError, match="support"):
+        NBPOptions(support="box")
     with pytest.raises(ValidationError, match="region"):
-        run_nbp(Z, anc, pos[anc], rng, region=(0, 0, -1, 1))
+        StaticPrior((0, 0, -1, 1))
+    with pytest.raises(ValidationError, match="prior"):
+        run_nbp(meas, None, rng)
+    with pytest.raises(ValidationError, match="measurements"):
+        run_nbp(Z, StaticPrior(REGION), rng)
     with pytest.raises(ValidationError, match="anchor_positions"):
-        run_nbp(Z, anc, pos[:3], rng, region=REGION)
+        _meas(Z, anc, pos[:3])
     with pytest.raises(ValidationError, match="ranges"):
-        run_nbp(Z[:, :4], anc, pos[anc], rng, region=REGION)
+        _meas(Z[:, :4], anc, pos[anc])
     with pytest.raises(ValidationError, match="rng"):
-        run_nbp(Z, anc, pos[anc], 3, region=REGION)
+        run_nbp(meas, StaticPrior(REGION), 3)
+    with pytest.raises(ValidationError, match="initial"):
+        run_wls(meas, StaticPrior(REGION, initial=np.zeros((3, 2))))
     with pytest.raises(ValidationError, match="mean_m"):
         ExponentialRangeError(0.0)
     with pytest.raises(ValidationError, match="mode"):

@@ -1,15 +1,16 @@
 """Polygon support outer-approximation (phyloc.localization.static.polygons and its kernels).
 
 References: convex hulls from scipy.spatial, a point-in-convex-polygon test by edge cross
-products written here, brute-force membership on dense grids, closed forms (area of the
-regular N_E-gon circumscribing a disk, eq. (16); the area A + Lz + z²Σtan(θ_k/2) of a polygon
-grown by z with mitred corners; the Löwner–John ellipse of a rectangle), chi-square tests of
-the samplers (scipy.stats) and the truth of simulated networks with non-negative ranging
-errors (POA eq. (11)).
+products written here, brute-force membership on dense grids, closed forms (area of the regular
+N_E-gon circumscribing a disk, POA-NBP eq. (16); the area A + Lz + z²Σtan(θ_k/2) of a polygon
+grown by z with mitred corners; the Löwner–John ellipse of a rectangle), chi-square tests of the
+samplers (scipy.stats), the plain-NumPy twins of the kernels (tests/naive_static.py) and the
+truth of simulated networks with non-negative ranging errors (POA-NBP eq. (11)).
 """
 
 import math
 
+import naive_static as N
 import numpy as np
 import pytest
 from scipy import stats
@@ -107,7 +108,7 @@ def test_clean_kernel_matches_twin_and_hull(seed):
         a, b = hull[k], hull[(k + 1) % hull.shape[0]]
         rows += [a, a, a + 0.3 * (b - a), a + 0.7 * (b - a)]
     noisy = np.array(rows)
-    want = K.clean_numpy(noisy, TOL)
+    want = N.clean_numpy(noisy, TOL)
     w = noisy.copy()
     m = K.clean_kernel(w, w.shape[0], TOL)
     np.testing.assert_allclose(w[:m], want, atol=1e-12)
@@ -138,7 +139,7 @@ def test_intersection_matches_dense_grid(seed):
     A, c = Q.halfspaces()
     off = np.array([0, A.shape[0]], dtype=np.int64)
     kern, _ = K.clip_groups_kernel(P.vertices, A, c, off, TOL, False)
-    twin, _ = K.clip_groups_numpy(P.vertices, A, c, off, TOL, False)
+    twin, _ = N.clip_groups_numpy(P.vertices, A, c, off, TOL, False)
     np.testing.assert_allclose(kern, twin, atol=1e-12)
     assert intersect(Q, P).area == pytest.approx(R.area, rel=1e-9, abs=1e-12)
 
@@ -154,7 +155,7 @@ def test_clip_groups_drops_exactly_the_groups_that_empty_it(seed):
     c = np.concatenate([g[1] for g in groups])
     off = np.cumsum([0] + [g[0].shape[0] for g in groups]).astype(np.int64)
     out, dropped = K.clip_groups_kernel(P.vertices, A, c, off, TOL, True)
-    twin, dropped_twin = K.clip_groups_numpy(P.vertices, A, c, off, TOL, True)
+    twin, dropped_twin = N.clip_groups_numpy(P.vertices, A, c, off, TOL, True)
     assert dropped.tolist() == [False, True, False] == dropped_twin.tolist()
     np.testing.assert_allclose(out, twin, atol=1e-12)
     assert ConvexPolygon(out).area == pytest.approx(intersect(P, near).area, rel=1e-9)
@@ -174,7 +175,7 @@ def test_intersection_disjoint_touching_and_empty():
     np.testing.assert_allclose(intersect(pt, sq).vertices, [[0.5, 0.5]])
 
 
-# -- anchor polygon (Algorithm 2) ---------------------------------------------------------------
+# -- anchor polygon (POA-NBP Algorithm 2) ----------------------------------------------------------
 @pytest.mark.parametrize("n_edges", [3, 4, 7, 16, 64])
 def test_anchor_polygon_circumscribes_the_disk(n_edges):
     rng = np.random.default_rng(n_edges)
@@ -196,7 +197,7 @@ def test_anchor_polygon_circumscribes_the_disk(n_edges):
     np.testing.assert_allclose(c - A @ x, z, rtol=1e-12)
 
 
-# -- polygon scaling (Algorithm 4) --------------------------------------------------------------
+# -- polygon scaling (POA-NBP Algorithm 4) ---------------------------------------------------------
 @pytest.mark.parametrize("seed", range(5))
 def test_scaled_polygon_contains_minkowski_sum(seed):
     rng = np.random.default_rng(200 + seed)
@@ -234,7 +235,7 @@ def test_support_and_scaling_kernels_match_twins(seed):
     w = _random_convex(rng, n_pts=10)
     for turn in (np.pi - 1e-3, np.pi / 2, 2 * np.pi / 16):
         A, c, corner = K.support_halfspaces_kernel(w, turn)
-        A2, c2, corner2 = K.support_halfspaces_numpy(w, turn)
+        A2, c2, corner2 = N.support_halfspaces_numpy(w, turn)
         np.testing.assert_allclose(A, A2, atol=1e-14)
         np.testing.assert_allclose(c, c2, atol=1e-12)
         np.testing.assert_allclose(corner, corner2)
@@ -243,7 +244,7 @@ def test_support_and_scaling_kernels_match_twins(seed):
         np.testing.assert_allclose(np.einsum("ij,ij->i", A, corner), c, atol=1e-9)
         z = rng.uniform(0.5, 5.0)
         vk = K.scaled_vertices_kernel(A, corner, z, TOL)
-        vt = K.scaled_vertices_numpy(A, c, z, TOL)
+        vt = N.scaled_vertices_numpy(A, c, z, TOL)
         np.testing.assert_allclose(vk, vt, atol=1e-9)
 
 
@@ -273,12 +274,29 @@ def test_scaling_degenerate_polygons():
     assert np.all(_inside(Sb.vertices, (sliver.vertices[:, None] + u[None]).reshape(-1, 2)))
 
 
-# -- sampling (eqs. (21)–(22)) ------------------------------------------------------------------
+# -- sampling (POA-NBP eqs. (21)–(22)) -------------------------------------------------------------
 def test_fan_sampling_kernel_matches_twin():
     rng = np.random.default_rng(5)
     for w in (_random_convex(rng), np.array([[0.0, 0.0], [2.0, 1.0]]), np.array([[1.0, 1.0]])):
         u = rng.random((500, 3))
-        np.testing.assert_allclose(K.fan_sample_kernel(w, u), K.fan_sample_numpy(w, u))
+        np.testing.assert_allclose(K.fan_sample_kernel(w, u), N.fan_sample_numpy(w, u))
+
+
+def test_contains_kernel_matches_twin_and_brute_force():
+    rng = np.random.default_rng(9)
+    P = ConvexPolygon(_random_convex(rng))
+    A, c = P.halfspaces()
+    pts = rng.uniform(-3.0, 3.0, size=(2000, 2)) * np.abs(P.vertices).max()
+    np.testing.assert_array_equal(
+        K.contains_kernel(A, c, pts, 0.0), N.contains_numpy(A, c, pts, 0.0)
+    )
+    pts = np.vstack([pts, P.vertices])  # the vertices: inside within tol (not by rounding)
+    for tol in (1e-9, 0.5):
+        got = K.contains_kernel(A, c, pts, tol)
+        np.testing.assert_array_equal(got, N.contains_numpy(A, c, pts, tol))
+    got = K.contains_kernel(A, c, pts, 1e-9)
+    np.testing.assert_array_equal(got, _inside(P.vertices, pts, 1e-9))
+    assert got.any() and not got.all()
 
 
 def test_uniform_sampling_triangle_fractions():
@@ -347,7 +365,7 @@ def test_polygon_properties_known_answers():
     assert hull.n_vertices >= 3 and _is_convex_ccw(hull.vertices)
 
 
-# -- POA on networks (Algorithm 1) --------------------------------------------------------------
+# -- POA on networks (POA-NBP Algorithm 1) ---------------------------------------------------------
 @pytest.mark.parametrize("seed", range(4))
 @pytest.mark.parametrize("region", [None, (0.0, 0.0, 100.0, 100.0)])
 def test_poa_polygons_contain_truth_and_shrink(seed, region):
@@ -482,7 +500,7 @@ def test_no_nan_under_degenerate_inputs():
     assert np.all(np.isfinite(e.area_history))
 
 
-# -- ellipse baseline (Fig. 9) ------------------------------------------------------------------
+# -- ellipse baseline (POA-NBP Fig. 9) -------------------------------------------------------------
 def test_mvee_known_answers_and_twin():
     rect = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 2.0], [0.0, 2.0]])
     c, S, _ = K.mvee_kernel(rect, 1e-9, 10_000)
@@ -495,7 +513,7 @@ def test_mvee_known_answers_and_twin():
     np.testing.assert_allclose(S, r**2 * np.eye(2), atol=1e-6 * r**2)
     pts = np.random.default_rng(0).normal(size=(60, 2)) * [3.0, 1.0]
     ck, Sk, _ = K.mvee_kernel(pts, 1e-7, 100_000)
-    cn, Sn, _ = K.mvee_numpy(pts, 1e-7, 100_000)
+    cn, Sn, _ = N.mvee_numpy(pts, 1e-7, 100_000)
     np.testing.assert_allclose(ck, cn, atol=1e-9)
     np.testing.assert_allclose(Sk, Sn, rtol=1e-9)
     q = np.einsum("ij,jk,ik->i", pts - ck, np.linalg.inv(Sk), pts - ck)

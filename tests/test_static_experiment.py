@@ -1,4 +1,4 @@
-"""The ``kind = "static"`` experiment (POA paper §V): figure names, containment, convergence
+"""The ``kind = "static"`` experiment (POA-NBP §V): figure names, containment, convergence
 rule, ellipse proposal, seeds and workers, recipe errors, the command line."""
 
 import math
@@ -11,6 +11,7 @@ from phyloc.cli import main
 from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation import static_experiment as se
+from phyloc.localization.static.polygons import EllipseRegion
 
 DATASETS = Path(__file__).resolve().parents[1] / "datasets"
 
@@ -86,7 +87,7 @@ def test_every_documented_figure_is_there(tiny):
 
 
 def test_polygons_contain_every_agent_and_shrink(tiny):
-    """Non-negative (exponential) ranging errors: every polygon contains its agent (POA
+    """Non-negative (exponential) ranging errors: every polygon contains its agent (POA-NBP
     Theorem 1), and more iterations or edges never enlarge the mean area."""
     f = tiny["figures"]
     assert f["poa.containment_fraction"] == 1.0
@@ -123,14 +124,14 @@ def test_ellipse_region_is_uniform():
     """Uniform samples in an ellipse {x: xᵀΣ⁻¹x <= 1}: all inside, mean = centre, covariance
     = Σ/4 (closed form), area = π sqrt(det Σ)."""
     shape = np.array([[9.0, 2.0], [2.0, 4.0]])
-    e = se._EllipseRegion([1.0, -2.0], shape)
+    e = EllipseRegion([1.0, -2.0], shape)
     assert e.area == pytest.approx(math.pi * math.sqrt(np.linalg.det(shape)))
     x = e.sample_uniform(200_000, np.random.default_rng(0))
     assert e.contains(x).all()
     np.testing.assert_allclose(x.mean(axis=0), [1.0, -2.0], atol=0.02)
     np.testing.assert_allclose(np.cov(x.T), shape / 4, atol=0.03)
     assert not e.contains(np.array([[1.0 + 3.1, -2.0]]))[0]
-    flat = se._EllipseRegion([0.0, 0.0], np.zeros((2, 2)))
+    flat = EllipseRegion([0.0, 0.0], np.zeros((2, 2)))
     assert flat.area == 0.0 and not flat.contains(np.zeros((1, 2)))[0]
 
 

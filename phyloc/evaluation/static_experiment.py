@@ -1,18 +1,23 @@
 """Static cooperative localization with polygon-constrained NBP: the POA-NBP paper §V.
 
 A ``kind = "static"`` recipe runs, on ``topologies`` random networks of the paper's setup
-(:func:`~phyloc.localization.static.static_ranges.paper_static_scenario`: agents uniform in a square,
-13 fixed anchors — layout :data:`~phyloc.localization.static.static_ranges.PAPER_ANCHOR_UNITS`,
-communication range, one-sided exponential ranging errors of mean 0.38 m, eq. (2)):
+(:func:`~phyloc.evaluation.static_scenarios.paper_static_scenario`: agents uniform in a
+square, 13 fixed anchors — layout
+:data:`~phyloc.evaluation.static_scenarios.PAPER_ANCHOR_UNITS`,
+communication range, one-sided exponential ranging errors of mean 0.38 m, POA-NBP eq. (2)):
 
-1. **Polygon support outer-approximation** (Fig. 9): POA (:func:`~phyloc.localization.static.polygons.poa`)
+1. **Polygon support outer-approximation** (POA-NBP Fig. 9): POA
+   (:func:`~phyloc.localization.static.polygons.poa`)
    for every ``N_E`` of ``experiment.n_edges`` over ``poa_iterations`` iterations, and the
    ellipse outer-approximation baseline — mean area per iteration; the fraction of polygons
    that contain their agent (with non-negative errors: all of them); POA time per node.
-2. **Localization** (Fig. 10, 11, Table I): every method of ``experiment.methods``:
+2. **Localization** (POA-NBP Figs. 10, 11, Table I): every method of ``experiment.methods``,
+   looked up in :data:`phyloc.localization.METHODS` (family ``"static"``) and run as
+   ``run(measurements, prior, rng, options)`` on the scenario's truth-free measurements. The
+   paper's comparison (:data:`METHODS`; see :mod:`phyloc.localization.static`):
 
-   ``poa_nbp``           NBP with the uniform proposal in each agent's POA polygon (eq. (21);
-                         ``N_E = poa_n_edges``, ``N_FS = poa_n_fs``)
+   ``poa_nbp``           NBP with the uniform proposal in each agent's POA polygon (POA-NBP
+                         eq. (21); ``N_E = poa_n_edges``, ``N_FS = poa_n_fs``)
    ``nbp_ellipse``       NBP with the uniform proposal in the ellipse outer-approximation
                          ('NBP ell.'; ``poa_n_fs`` iterations, like the polygons)
    ``nbp_min_entropy``   NBP sampling the incoming message of least entropy ('NBP min.')
@@ -21,13 +26,17 @@ communication range, one-sided exponential ranging errors of mean 0.38 m, eq. (2
    ``pbp``               parametric (Gaussian) BP ('PBP')
    ``wls``               weighted least squares by Gauss–Newton ('WLS')
 
-   NBP options come from ``[localization.nbp]`` (``proposal`` is set by the method),
-   ``[localization.pbp]``, ``[localization.wls]``.
-3. **Samples** (Fig. 12): ``poa_nbp`` and ``nbp_min_entropy`` (or the methods of
+   A method's options are its registered defaults (e.g. the proposal of an NBP variant),
+   updated by the recipe table of its options class (``[localization.nbp]``,
+   ``[localization.pbp]``, ``[localization.wls]``) and by ``[experiment]`` (``n_iterations``,
+   ``n_samples``, ``poa_n_edges``, ``poa_n_fs``, ``baseline_start``) where the options have
+   those fields. Methods with POA support receive the proposal polygons computed for the
+   figures through their prior (so POA runs once per topology, on its own random stream).
+3. **Samples** (POA-NBP Fig. 12): ``poa_nbp`` and ``nbp_min_entropy`` (or the methods of
    ``sample_methods``) at every ``N_S`` of ``experiment.sample_sweep``.
 
 Convergence is read off the mean-error curve ``e_l`` over all topologies by the paper's rule
-(§V, footnote 5: "convergence is achieved if the average localization error does not change
+(POA-NBP §V, footnote 5: "convergence is achieved if the average localization error does not change
 notably for successive iterations"): the run has converged after iteration ``l − 1`` for the
 first ``l >= 2`` with ``|e_l − e_{l−1}| <= max(convergence_rel · e_{l−1}, convergence_abs_m)``
 (never: ``n_iterations``). A stricter reading is reported next to it as the *settling*
@@ -35,7 +44,8 @@ iteration: the first iteration from which the curve stays within
 ``max(convergence_rel · e_final, convergence_abs_m)`` of its final value; it counts the slow
 Monte Carlo refinement a particle method keeps making after its curve has flattened.
 The time to convergence per node is the mean time per node and iteration times that number of
-iterations, plus (``poa_nbp``, ``nbp_ellipse``) the time of the outer-approximation per node.
+iterations, plus the method's setup time per node (its ``setup_time_per_node_s`` diagnostic:
+the outer-approximation of ``poa_nbp`` and ``nbp_ellipse``, the MDS start of ``pbp``, ``wls``).
 Errors "after convergence" are those of the last iteration (``n_iterations`` >= convergence).
 
 Figures (``results.json``; ``<m>`` a method, ``<ne>`` an ``N_E``, ``<l>`` an iteration, ``<n>``
@@ -68,14 +78,17 @@ Series: ``iteration``; ``<m>.mean_error_m`` per iteration; ``poa.ne<ne>.area_m2`
 
 Timings are wall times of this process (with several workers they include contention);
 everything else is identical for a seed whatever the worker count.
+
+References
+----------
+.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+   Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -84,34 +97,30 @@ from phyloc._validate import check_keys
 from phyloc.config import Recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict
-from phyloc.localization.static.gaussian_bp import (
-    GaussianBPOptions,
-    WLSOptions,
-    run_gaussian_bp,
-    run_wls,
-)
-from phyloc.localization.static.nbp import NBPOptions, run_nbp
+from phyloc.evaluation.static_scenarios import paper_static_scenario
+from phyloc.localization import METHODS as REGISTRY
+from phyloc.localization.static import StaticPrior
 from phyloc.localization.static.polygons import ellipse_outer_approximation, poa
-from phyloc.localization.static.static_ranges import paper_static_scenario, range_error_model
+from phyloc.localization.static.static_ranges import range_error_model
 from phyloc.parallel import run_tasks
 
-NBP_METHODS = {
-    "poa_nbp": "polygon",
-    "nbp_ellipse": "polygon",
-    "nbp_min_entropy": "min_entropy",
-    "nbp_mixture": "mixture",
-    "nbp_parsimonious": "parsimonious",
-}
-METHODS = (*NBP_METHODS, "pbp", "wls")
-LABELS = {
-    "poa_nbp": "POA-NBP",
-    "nbp_ellipse": "NBP ell.",
-    "nbp_min_entropy": "NBP min.",
-    "nbp_mixture": "NBP mix.",
-    "nbp_parsimonious": "NBP par.",
-    "pbp": "PBP",
-    "wls": "WLS",
-}
+#: The methods of the POA-NBP paper's comparison (the default of ``experiment.methods``); any
+#: method registered in :data:`phyloc.localization.METHODS` with family ``"static"`` may be
+#: listed.
+METHODS = (
+    "poa_nbp",
+    "nbp_ellipse",
+    "nbp_min_entropy",
+    "nbp_mixture",
+    "nbp_parsimonious",
+    "pbp",
+    "wls",
+)
+#: Option keys filled from ``[experiment]`` (a recipe's ``[localization.<table>]`` must not set
+#: them) where the method's options have them; ``proposal`` and ``support`` are set by the
+#: method's registered defaults.
+_FROM_EXPERIMENT = ("n_iterations", "n_samples", "poa_n_edges", "poa_n_fs", "start")
+_FROM_METHOD = ("proposal", "support")
 ERRORS = ("exponential", "gaussian")
 BASELINE_STARTS = ("mds", "heuristic")
 OUTAGE_GRID_M = np.logspace(-2, 1.7, 149)
@@ -131,7 +140,7 @@ class StaticExperimentSpec:
     topologies : int
         Random networks (tasks) (paper: 200).
     n_agents, side_m, comm_range_m
-        100 agents in a 100 m square, r_com = 20 m (§V-A).
+        100 agents in a 100 m square, r_com = 20 m (POA-NBP §V-A).
     error : {"exponential", "gaussian"}
         Ranging error model; ``mean_error_m`` (exponential, 0.38 m) or ``error_std_m``.
     n_edges : tuple of int
@@ -139,19 +148,21 @@ class StaticExperimentSpec:
     poa_iterations : int
         Iterations of the polygon study (5).
     ellipses : bool
-        Run the ellipse baseline of the polygon study (and allow ``nbp_ellipse``).
+        Run the ellipse baseline of the polygon study.
     poa_n_edges, poa_n_fs : int
-        N_E and N_FS of the polygons used as proposals (16, 2; §V-B).
+        N_E and N_FS of the polygons used as proposals (16, 2; POA-NBP §V-B).
     methods : tuple of str
-        From :data:`METHODS`.
+        Names of static methods of :data:`phyloc.localization.METHODS` (default
+        :data:`METHODS`).
     n_iterations : int
         Message-passing iterations of every method (10).
     n_samples : int
         N_S of the NBP methods (200).
     sample_sweep : tuple of int
-        N_S values of Fig. 12 (empty: skip).
+        N_S values of POA-NBP Fig. 12 (empty: skip).
     sample_methods : tuple of str
-        NBP methods of the sweep (``poa_nbp``, ``nbp_min_entropy``).
+        Sample-based methods of the sweep (options with ``n_samples``; ``poa_nbp``,
+        ``nbp_min_entropy``).
     outage_thresholds_m : tuple of float
         Thresholds of the scalar outage figures.
     convergence_rel, convergence_abs_m : float
@@ -161,8 +172,9 @@ class StaticExperimentSpec:
         with the anchors fixing the frame (:func:`~phyloc.localization.initialization.
         coarse_positions`; the heuristic start where the range graph is disconnected), or the
         centroid of the anchors each agent hears
-        (:func:`~phyloc.localization.static.gaussian_bp.heuristic_start`). Both are Gauss–Newton-type
-        local methods; from the heuristic start they stall in wrong local optima.
+        (:func:`~phyloc.localization.static.gaussian_bp.heuristic_start`): the ``start`` option
+        of every method that has one. Both are Gauss–Newton-type local methods; from the
+        heuristic start they stall in wrong local optima.
     """
 
     topologies: int = 200
@@ -206,21 +218,19 @@ class StaticExperimentSpec:
         ne = tuple(v.integer(s + "n_edges", x, minimum=3) for x in self.n_edges)
         object.__setattr__(self, "n_edges", ne)
         methods = tuple(self.methods)
+        static = REGISTRY.family("static")
         if not methods:
-            raise ValidationError(s + "methods", [], f"at least one of {', '.join(METHODS)}")
+            raise ValidationError(s + "methods", [], f"at least one of {', '.join(static)}")
         for m in methods:
-            if m not in METHODS:
-                raise ValidationError(s + "methods", m, f"each one of {', '.join(METHODS)}")
-        if "nbp_ellipse" in methods and not self.ellipses:
-            raise ValidationError(s + "ellipses", False, "must be true for method nbp_ellipse")
+            if m not in static:
+                raise ValidationError(s + "methods", m, f"each one of {', '.join(static)}")
         object.__setattr__(self, "methods", methods)
         sweep = tuple(v.integer(s + "sample_sweep", x, minimum=2) for x in self.sample_sweep)
         object.__setattr__(self, "sample_sweep", sweep)
+        sampled = tuple(m for m in static if "n_samples" in _fields(REGISTRY[m].options))
         for m in self.sample_methods:
-            if m not in NBP_METHODS:
-                raise ValidationError(
-                    s + "sample_methods", m, f"each one of {', '.join(NBP_METHODS)}"
-                )
+            if m not in sampled:
+                raise ValidationError(s + "sample_methods", m, f"each one of {', '.join(sampled)}")
         object.__setattr__(self, "sample_methods", tuple(self.sample_methods))
         thr = tuple(v.positive(s + "outage_thresholds_m", x) for x in self.outage_thresholds_m)
         object.__setattr__(self, "outage_thresholds_m", thr)
@@ -244,69 +254,58 @@ class StaticExperimentSpec:
         return range_error_model("gaussian", std_m=self.error_std_m)
 
 
-@dataclass(frozen=True)
-class MethodOptions:
-    """Options of every method family, from ``[localization.nbp|pbp|wls]``."""
-
-    nbp: NBPOptions = field(default_factory=NBPOptions)
-    pbp: GaussianBPOptions = field(default_factory=GaussianBPOptions)
-    wls: WLSOptions = field(default_factory=WLSOptions)
+def _fields(options_cls) -> set[str]:
+    return {f.name for f in dataclasses.fields(options_cls)}
 
 
-def method_options(localization: dict, exp: StaticExperimentSpec) -> MethodOptions:
-    """``[localization.nbp]`` / ``[localization.pbp]`` / ``[localization.wls]``, with the
-    experiment's iteration and sample counts; unknown keys name ``localization.<family>.<key>``."""
-    check_keys(localization, ["nbp", "pbp", "wls"], "localization")
-    out = {}
-    for fam, cls in (("nbp", NBPOptions), ("pbp", GaussianBPOptions), ("wls", WLSOptions)):
-        raw = localization.get(fam, {})
+def _section(method) -> str:
+    """The ``[localization.<section>]`` table of a method's options (default: its name)."""
+    return getattr(method.options, "recipe_section", method.name)
+
+
+def method_options(localization: dict, exp: StaticExperimentSpec, n_samples=None) -> dict:
+    """Options of every method of ``exp.methods``, by name: the method's registered defaults,
+    its ``[localization.<table>]`` (``nbp``, ``pbp``, ``wls``: the options' ``recipe_section``)
+    and the values of ``[experiment]`` (``n_iterations``, ``n_samples`` — or the argument
+    ``n_samples`` of a sweep —, ``poa_n_edges``, ``poa_n_fs``, ``baseline_start`` as
+    ``start``) where the options have those fields. Unknown keys name
+    ``localization.<table>.<key>``."""
+    static = [REGISTRY[m] for m in REGISTRY.family("static")]
+    tables = {_section(m): m for m in static}
+    check_keys(localization, list(tables), "localization")
+    for sec, raw in localization.items():
         if not isinstance(raw, dict):
-            raise ValidationError(f"localization.{fam}", raw, "a table of method options")
-        for key in ("n_iterations", "n_samples", "proposal"):
+            raise ValidationError(f"localization.{sec}", raw, "a table of method options")
+        for key in (*_FROM_EXPERIMENT, *_FROM_METHOD):
             if key in raw:
                 raise ValidationError(
-                    f"localization.{fam}.{key}",
+                    f"localization.{sec}.{key}",
                     raw[key],
-                    "is set by [experiment] (n_iterations, n_samples) or by the method name",
+                    "is set by [experiment] (n_iterations, n_samples, poa_n_edges, poa_n_fs, "
+                    "baseline_start) or by the method name",
                 )
-        extra = {"n_iterations": exp.n_iterations}
-        if fam == "nbp":
-            extra["n_samples"] = exp.n_samples
-        try:
-            out[fam] = cls.from_dict({**raw, **extra}, section=f"localization.{fam}")
-        except ValidationError as exc:
-            if exc.field.startswith("localization"):
-                raise
-            raise ValidationError(
-                f"localization.{fam}.{exc.field}", exc.value, exc.allowed
-            ) from None
-    return MethodOptions(**out)
+        if sec not in {_section(REGISTRY[m]) for m in exp.methods}:
+            _options(tables[sec], localization, exp, n_samples)  # validate unused tables too
+    return {m: _options(REGISTRY[m], localization, exp, n_samples) for m in exp.methods}
 
 
-class _EllipseRegion:
-    """An ellipse ``{x : (x − c)ᵀ Σ⁻¹ (x − c) <= 1}`` with the polygon-proposal interface
-    (``area``, ``contains``, ``sample_uniform``) of :func:`~phyloc.localization.static.nbp.run_nbp`."""
-
-    def __init__(self, center, shape):
-        self.center = np.asarray(center, dtype=np.float64)
-        self.shape = np.asarray(shape, dtype=np.float64)
-        det = float(np.linalg.det(self.shape))
-        self.area = math.pi * math.sqrt(det) if det > 0 else 0.0
-        if self.area > 0:
-            self._L = np.linalg.cholesky(self.shape)
-            self._inv = np.linalg.inv(self.shape)
-
-    def contains(self, points, tol=1e-9):
-        d = np.asarray(points, dtype=np.float64).reshape(-1, 2) - self.center
-        if self.area == 0:
-            return np.zeros(d.shape[0], bool)
-        return np.einsum("ni,ij,nj->n", d, self._inv, d) <= 1.0 + tol
-
-    def sample_uniform(self, n, rng):
-        r = np.sqrt(rng.uniform(size=n))
-        t = rng.uniform(0.0, 2.0 * np.pi, size=n)
-        u = np.stack([r * np.cos(t), r * np.sin(t)], axis=1)
-        return self.center + u @ self._L.T
+def _options(method, localization: dict, exp: StaticExperimentSpec, n_samples=None):
+    sec = _section(method)
+    values = {
+        "n_iterations": exp.n_iterations,
+        "n_samples": exp.n_samples if n_samples is None else n_samples,
+        "poa_n_edges": exp.poa_n_edges,
+        "poa_n_fs": exp.poa_n_fs,
+        "start": exp.baseline_start,
+    }
+    fields = _fields(method.options)
+    extra = {k: x for k, x in values.items() if k in fields}
+    try:
+        return method.make_options({**localization.get(sec, {}), **extra}, f"localization.{sec}")
+    except ValidationError as exc:
+        if exc.field.startswith("localization"):
+            raise
+        raise ValidationError(f"localization.{sec}.{exc.field}", exc.value, exc.allowed) from None
 
 
 def _errors(res, truth_agents):
@@ -315,7 +314,7 @@ def _errors(res, truth_agents):
 
 def _task(payload, seed_seq):
     """One topology: scenario, polygon study, every method, the sample sweep."""
-    exp, opts = payload
+    exp, localization = payload
     streams = seed_seq.spawn(4 + len(exp.methods) + len(exp.sample_sweep) * len(exp.sample_methods))
     rng = np.random.default_rng(streams[0])
     sc = paper_static_scenario(
@@ -325,15 +324,16 @@ def _task(payload, seed_seq):
         comm_range_m=exp.comm_range_m,
         error_model=exp.error_model(),
     )
-    truth = sc.agent_positions
+    truth = sc.agent_positions  # the evaluation's only use of the truth: errors, containment
+    meas = sc.measurements()
     out: dict = {}
     # 1. polygon study (Fig. 9)
     prng = np.random.default_rng(streams[1])
     for ne in exp.n_edges:
         r = poa(
-            sc.positions,
-            sc.ranges,
-            sc.is_anchor,
+            meas.positions,
+            meas.ranges,
+            meas.is_anchor,
             rng=prng,
             n_edges=ne,
             n_iterations=exp.poa_iterations,
@@ -341,11 +341,12 @@ def _task(payload, seed_seq):
         )
         out[f"poa|{ne}|area"] = r.area_history
         out[f"poa|{ne}|contained"] = _contained(r.polygons, truth)
-    # the proposal polygons: N_E = poa_n_edges, N_FS = poa_n_fs, their own stream
+    # the proposal polygons: N_E = poa_n_edges, N_FS = poa_n_fs, their own stream; methods that
+    # use POA support get them through the prior (computed once, as the figures need them)
     prop = poa(
-        sc.positions,
-        sc.ranges,
-        sc.is_anchor,
+        meas.positions,
+        meas.ranges,
+        meas.is_anchor,
         rng=np.random.default_rng(streams[2]),
         n_edges=exp.poa_n_edges,
         n_iterations=exp.poa_n_fs,
@@ -358,45 +359,42 @@ def _task(payload, seed_seq):
         [p.sample_rejection(exp.n_samples, arng)[1] for p in prop.polygons if p is not None]
     )
     out["poa|time_per_node_s"] = float(prop.time_s.sum(axis=0).mean())
-    n_meas = int(np.isfinite(sc.ranges[~sc.is_anchor]).sum())
+    n_meas = int(np.isfinite(meas.ranges[~meas.is_anchor]).sum())
     out["poa|dropped"] = (int(prop.dropped.shape[0]), n_meas)
-    supports = {"poa_nbp": (list(prop.polygons), out["poa|time_per_node_s"])}
+    priors = {
+        "poa": StaticPrior(
+            sc.region,
+            polygons=list(prop.polygons),
+            polygon_time_per_node_s=out["poa|time_per_node_s"],
+        ),
+        None: StaticPrior(sc.region),
+    }
     if exp.ellipses:
-
-        def ellipses(n_iterations):
-            return ellipse_outer_approximation(
-                sc.positions, sc.ranges, sc.is_anchor, n_iterations=n_iterations, region=sc.region
-            )
-
-        out["ellipse|area"] = ellipses(exp.poa_iterations).area_history
-        # the proposal ellipses: as many iterations as the proposal polygons (N_FS)
-        t0 = time.perf_counter()
-        ell = ellipses(exp.poa_n_fs)
-        t_ell = (time.perf_counter() - t0) / max(exp.n_agents, 1)
-        regions = [
-            _EllipseRegion(c, s) if b else None
-            for c, s, b in zip(ell.centers, ell.shapes, ell.bounded, strict=True)
-        ]
-        supports["nbp_ellipse"] = (regions, t_ell)
-    if exp.baseline_start == "mds" and ({"pbp", "wls"} & set(exp.methods)):
-        supports["start"] = _mds_start(sc)
+        out["ellipse|area"] = ellipse_outer_approximation(
+            meas.positions,
+            meas.ranges,
+            meas.is_anchor,
+            n_iterations=exp.poa_iterations,
+            region=sc.region,
+        ).area_history
     # 2. localization (Fig. 10, 11, Table I)
     s = 3
     for m in exp.methods:
         mrng = np.random.default_rng(streams[s])
         s += 1
-        res, t_support = _run_method(m, sc, opts, exp.n_samples, supports, mrng)
+        res = _run_method(m, meas, priors, _options(REGISTRY[m], localization, exp), mrng)
         out[f"{m}|err"] = _errors(res, truth)
-        out[f"{m}|time"] = float(np.mean(res.time_per_node_s))
-        out[f"{m}|t_support"] = t_support
+        out[f"{m}|time"] = float(np.mean(res.timing.agent_s))
+        out[f"{m}|t_support"] = float(res.diagnostics.get("setup_time_per_node_s", 0.0))
     # 3. sample sweep (Fig. 12)
     for m in exp.sample_methods:
         for ns in exp.sample_sweep:
             mrng = np.random.default_rng(streams[s])
             s += 1
-            res, _ = _run_method(m, sc, opts, ns, supports, mrng)
+            opts = _options(REGISTRY[m], localization, exp, ns)
+            res = _run_method(m, meas, priors, opts, mrng)
             out[f"{m}|ns{ns}|err"] = _errors(res, truth)[-1]
-            out[f"{m}|ns{ns}|time"] = float(np.mean(res.time_per_node_s))
+            out[f"{m}|ns{ns}|time"] = float(np.mean(res.timing.agent_s))
     return out
 
 
@@ -406,53 +404,21 @@ def _contained(polygons, truth):
     )
 
 
-def _run_method(m, sc, opts, n_samples, supports, rng):
-    kw = {"region": sc.region, "error_model": sc.error_model}
-    if m in NBP_METHODS:
-        o = dataclasses.replace(opts.nbp, proposal=NBP_METHODS[m], n_samples=n_samples)
-        polys, t_support = supports.get(m, (None, 0.0))
-        res = run_nbp(sc.ranges, sc.is_anchor, sc.anchor_positions, rng, o, polygons=polys, **kw)
-        return res, t_support
-    initial, t_start = supports.get("start", (None, 0.0))
-    kw["initial"] = initial
-    if m == "pbp":
-        res = run_gaussian_bp(sc.ranges, sc.is_anchor, sc.anchor_positions, opts.pbp, **kw)
-    else:
-        res = run_wls(sc.ranges, sc.is_anchor, sc.anchor_positions, opts.wls, **kw)
-    return res, t_start
-
-
-def _mds_start(sc):
-    """Truth-free MDS/SMACOF start of the baselines in the anchors' frame, clipped to the
-    region; ``(None, 0)`` (heuristic start) when the range graph is disconnected."""
-    from phyloc.localization.initialization import coarse_positions
-
-    t0 = time.perf_counter()
-    j, i = np.nonzero(np.isfinite(sc.ranges))
-    links = np.stack([j, i], axis=1)
-    try:
-        sol = coarse_positions(
-            links,
-            sc.ranges[j, i],
-            sc.positions.shape[0],
-            2,
-            is_anchor=sc.is_anchor,
-            anchor_positions=sc.anchor_positions,
-        )
-    except ValidationError:
-        return None, 0.0
-    x0, y0, x1, y1 = sc.region
-    start = np.clip(sol.positions[~sc.is_anchor], [x0, y0], [x1, y1])
-    return start, (time.perf_counter() - t0) / max(int((~sc.is_anchor).sum()), 1)
+def _run_method(name, meas, priors, options, rng):
+    """Run a registered method; the prior carries the POA polygons of the proposal setting
+    when the method's options ask for POA support (``support = "poa"``)."""
+    prior = priors["poa"] if getattr(options, "support", None) == "poa" else priors[None]
+    return REGISTRY[name].run(meas, prior, rng, options)
 
 
 def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
     """Run a ``kind = "static"`` recipe; returns ``{"figures", "series", "meta"}``."""
     exp = StaticExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
-    opts = method_options(recipe.section("localization"), exp)
+    localization = recipe.section("localization")
+    opts = method_options(localization, exp)
     results = run_tasks(
         _task,
-        [(exp, opts)] * exp.topologies,
+        [(exp, localization)] * exp.topologies,
         recipe.seed,
         workers=workers,
         scheduler=scheduler,
@@ -468,17 +434,13 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         "topologies": exp.topologies,
         "n_agents": exp.n_agents,
         "methods": list(exp.methods),
-        "labels": {m: LABELS[m] for m in METHODS},
+        "labels": {m: REGISTRY[m].label for m in REGISTRY.family("static")},
         "n_edges": list(exp.n_edges),
         "sample_sweep": list(exp.sample_sweep),
         "sample_methods": list(exp.sample_methods),
         "outage_thresholds_m": list(exp.outage_thresholds_m),
         "experiment": dataclasses.asdict(exp),
-        "options": {
-            "nbp": dataclasses.asdict(opts.nbp),
-            "pbp": dataclasses.asdict(opts.pbp),
-            "wls": dataclasses.asdict(opts.wls),
-        },
+        "options": {m: dataclasses.asdict(o) for m, o in opts.items()},
         "timing": "wall time per node of this process (includes worker contention)",
         "convergence": (
             "converged after iteration l-1 at the first l with |e_l - e_(l-1)| <= "
@@ -571,9 +533,9 @@ def _aggregate(results, exp: StaticExperimentSpec):
             series[f"{base}.outage"] = np.mean(e[:, None] > OUTAGE_GRID_M, axis=0)
             for x in exp.outage_thresholds_m:
                 figures[f"{base}.outage_{_threshold_name(x)}"] = float(np.mean(e > x))
-    if "poa_nbp" in exp.methods:
+    if "poa_nbp" in exp.methods:  # POA-NBP Table I: POA-NBP against the other NBP variants
         for m in exp.methods:
-            if m in NBP_METHODS and m != "poa_nbp":
+            if m != "poa_nbp" and REGISTRY[m].options is REGISTRY["poa_nbp"].options:
                 figures[f"poa_nbp_vs_{m}.time_to_convergence_ratio"] = (
                     figures["poa_nbp.time_to_convergence_s"] / figures[f"{m}.time_to_convergence_s"]
                 )
@@ -613,7 +575,7 @@ def summary_rows(results: dict):
     for m in meta["methods"]:
         rows.append(
             (
-                LABELS[m],
+                meta["labels"].get(m, m),
                 f[f"{m}.mean_error_m"],
                 f[f"{m}.rmse_m"],
                 int(f[f"{m}.convergence_iteration"]),
@@ -645,7 +607,7 @@ def summary_lines(results: dict):
     for m in meta["sample_methods"]:
         parts = [f"N_S={ns}: {f[f'{m}.ns{ns}.mean_error_m']:.3f} m" for ns in meta["sample_sweep"]]
         if parts:
-            out.append(f"{LABELS[m]} mean error vs samples: " + ", ".join(parts))
+            out.append(f"{meta['labels'].get(m, m)} mean error vs samples: " + ", ".join(parts))
     return out
 
 
@@ -665,21 +627,22 @@ def plot(results: dict, path) -> None:
         ax[0].plot(it, ser["ellipse.area_m2"], "k^--", label="ellipses")
     ax[0].set(xlabel="iteration", ylabel="mean area [m²]", yscale="log", title="Fig. 9")
     for m in meta["methods"]:
-        ax[1].plot(ser["iteration"], ser[f"{m}.mean_error_m"], "o-", label=LABELS[m])
-        ax[2].semilogx(ser["outage_threshold_m"], ser[f"{m}.outage"], label=LABELS[m])
+        label = meta["labels"].get(m, m)
+        ax[1].plot(ser["iteration"], ser[f"{m}.mean_error_m"], "o-", label=label)
+        ax[2].semilogx(ser["outage_threshold_m"], ser[f"{m}.outage"], label=label)
     ax[1].set(
         xlabel="iteration", ylabel="mean localization error [m]", yscale="log", title="Fig. 10"
     )
     ax[2].set(xlabel="error threshold [m]", ylabel="outage probability", title="Fig. 11")
-    for m in meta["sample_methods"]:
+    for k, m in enumerate(meta["sample_methods"]):  # the first (POA-NBP) solid, others dashed
         for ns in meta["sample_sweep"]:
             ax[3].semilogx(
                 ser["outage_threshold_m"],
                 ser[f"{m}.ns{ns}.outage"],
-                "-" if m == "poa_nbp" else "--",
-                label=f"{LABELS[m]} N_S={ns}",
+                "-" if k == 0 else "--",
+                label=f"{meta['labels'].get(m, m)} N_S={ns}",
             )
-    if "pbp" in meta["methods"]:
+    if "pbp" in meta["methods"]:  # POA-NBP Fig. 12 draws PBP as the reference curve
         ax[3].semilogx(ser["outage_threshold_m"], ser["pbp.outage"], "k:", label="PBP")
     ax[3].set(xlabel="error threshold [m]", ylabel="outage probability", title="Fig. 12")
     for a in ax:

@@ -1,15 +1,20 @@
-"""Numba kernels of :mod:`phyloc.localization.static.nbp` and their plain-NumPy twins.
+"""Numba kernels of :mod:`phyloc.localization.static.nbp`.
 
-The O(N_S²) Gaussian KDE of a message evaluated at the proposal samples (POA-NBP eq. (8)) and
-the least-squares cross-validation score of a message's bandwidth; each kernel is tested
-against its twin (``tests/test_nbp.py``).
+The O(N_S²) Gaussian KDE of a message (POA-NBP eq. (7)) evaluated at the proposal samples
+(POA-NBP eq. (8)) and the least-squares cross-validation score of a message's bandwidth. Each
+kernel is tested against a plain-NumPy reference twin, which is test code
+(``tests/naive_static.py``, compared in ``tests/test_nbp.py``).
+
+References
+----------
+.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+   Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.special import logsumexp
 
 #: Number of candidate bandwidths of the LSCV grid ``√2·h_S·2^{−t/2}``.
 LSCV_GRID = 13
@@ -20,13 +25,13 @@ KDE_CUTOFF = 36.0
 
 
 # ---------------------------------------------------------------------------------------------
-# Kernels and their NumPy twins
+# Kernels
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
 def kde_logpdf_kernel(points, centers, log_weights, bandwidths, out):
     """``out[m, p] = log Σ_k exp(log_weights[m, k]) N(points[p]; centers[m, k], h_m² I)``.
 
-    The Gaussian-kernel density estimate of eq. (7) of message ``m`` (isotropic bandwidth
+    The Gaussian-kernel density estimate of POA-NBP eq. (7) of message ``m`` (isotropic bandwidth
     ``h_m = bandwidths[m]``) in the log domain with a max-shift (no underflow far from every
     centre). ``log_weights`` rows are normalised (logsumexp 0); ``-inf`` marks a zero weight.
     Terms more than :data:`KDE_CUTOFF` below the largest are skipped: their total is below
@@ -61,14 +66,6 @@ def kde_logpdf_kernel(points, centers, log_weights, bandwidths, out):
                 if buf[k] > cut:
                     s += np.exp(buf[k] - best)
             out[m, p] = best + np.log(s) - log_norm
-
-
-def kde_logpdf_numpy(points, centers, log_weights, bandwidths):
-    """Plain-NumPy twin of :func:`kde_logpdf_kernel` (returns ``[M, P]``)."""
-    h = np.asarray(bandwidths, dtype=np.float64)
-    d2 = ((points[None, :, None, :] - centers[:, None, :, :]) ** 2).sum(axis=-1)  # [M, P, K]
-    e = log_weights[:, None, :] - d2 / (2.0 * h * h)[:, None, None]
-    return logsumexp(e, axis=2) - np.log(2.0 * np.pi * h * h)[:, None]
 
 
 @njit(cache=True, fastmath={"reassoc", "contract"})
@@ -120,25 +117,3 @@ def lscv_grid_kernel(samples, weights, h0, out):
             h2 = h0 * h0 * 0.5 ** (t - 1)
             out[t - 1] = (sw2 + 2.0 * s1) / (4.0 * np.pi * h2) - 2.0 * s2_t / (2.0 * np.pi * h2)
         s1 = s1_t
-
-
-def lscv_grid_numpy(samples, weights, h0, n_grid):
-    """Plain-NumPy twin of :func:`lscv_grid_kernel` (direct evaluation, returns ``[n_grid]``)."""
-    n = samples.shape[0]
-    iu, ju = np.triu_indices(n, 1)
-    d2 = ((samples[iu] - samples[ju]) ** 2).sum(axis=1)
-    w = weights
-    loo = np.where(w < 1.0, 1.0 / np.where(w < 1.0, 1.0 - w, 1.0), 0.0)
-    ww = w[iu] * w[ju]
-    out = np.empty(n_grid)
-    for t in range(n_grid):
-        h2 = h0 * h0 * 0.5**t
-        int_f2 = (np.sum(w * w) + 2.0 * np.sum(ww * np.exp(-d2 / (4.0 * h2)))) / (4 * np.pi * h2)
-        cv = np.sum(ww * (loo[iu] + loo[ju]) * np.exp(-d2 / (2.0 * h2))) / (2 * np.pi * h2)
-        out[t] = int_f2 - 2.0 * cv
-    return out
-
-
-# ---------------------------------------------------------------------------------------------
-# Public building blocks: KDE, bandwidths, messages, message products
-# ---------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Numba kernels of the polygon outer-approximation (POA), each beside its plain-NumPy twin.
+"""Numba kernels of the polygon outer-approximation (POA, POA-NBP Algorithms 1–4).
 
 A convex polygon is an array ``v`` of shape ``(m, 2)`` holding its vertices counter-clockwise
 (CCW); ``m = 0`` is the empty set, ``m = 1`` a point and ``m = 2`` a segment (the closed
@@ -8,9 +8,15 @@ shape ``(k, 2)`` and offsets ``c`` of shape ``(k,)``: a point ``x`` is inside wh
 ``1e-12`` times the coordinate scale.
 
 The kernels take arrays and scalars only, do not validate and draw no random numbers (the
-uniforms of the samplers are drawn by the caller from its ``numpy.random.Generator``). The
-``*_numpy`` twins are written independently (vectorized per step, no shared helpers) and the
-tests compare each kernel with its twin.
+uniforms of the samplers are drawn by the caller from its ``numpy.random.Generator``). Each
+kernel has a plain-NumPy reference twin, written independently (vectorized per step, no
+shared helpers); the twins are test code (``tests/naive_static.py``) and
+``tests/test_polygons.py`` compares each kernel with its twin.
+
+References
+----------
+.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+   Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations
@@ -72,36 +78,8 @@ def clean_kernel(v, m, tol):
     return m
 
 
-def clean_numpy(v, tol):
-    """Plain-NumPy twin of :func:`clean_kernel` (returns a new array)."""
-    v = [np.array(p, dtype=np.float64) for p in np.asarray(v, dtype=np.float64)]
-    changed = True
-    while changed and len(v) > 1:
-        changed = False
-        k = 0
-        while k < len(v) and len(v) > 1:
-            kn = (k + 1) % len(v)
-            if np.all(np.abs(v[kn] - v[k]) <= tol):
-                del v[kn]
-                changed = True
-            else:
-                k += 1
-        k = 0
-        while k < len(v) and len(v) >= 3:
-            e1 = v[k] - v[k - 1]
-            e2 = v[(k + 1) % len(v)] - v[k]
-            cr = e1[0] * e2[1] - e1[1] * e2[0]
-            ln = max(np.linalg.norm(e1), np.linalg.norm(e2))
-            if e1 @ e2 >= 0.0 and cr <= tol * ln:
-                del v[k]
-                changed = True
-            else:
-                k += 1
-    return np.array(v, dtype=np.float64).reshape(-1, 2)
-
-
 # ---------------------------------------------------------------------------------------------
-# Sutherland–Hodgman clipping (POA Algorithm 3)
+# Sutherland–Hodgman clipping (POA-NBP Algorithm 3)
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _clip_one(src, n, a0, a1, c, tol, dst):
@@ -137,7 +115,7 @@ def _clip_one(src, n, a0, a1, c, tol, dst):
 
 @njit(cache=True)
 def clip_groups_kernel(verts, A, c, group_off, tol, allow_drop):
-    """Intersect the polygon ``verts`` with groups of halfspaces (POA Algorithm 3).
+    """Intersect the polygon ``verts`` with groups of halfspaces (POA-NBP Algorithm 3).
 
     Group ``g`` is the halfspace set ``A[group_off[g]:group_off[g+1]]`` (one clipping polygon,
     e.g. an anchor polygon or a scaled neighbour polygon). Groups are applied in order by
@@ -186,62 +164,20 @@ def clip_groups_kernel(verts, A, c, group_off, tol, allow_drop):
     return cur[:m].copy(), dropped
 
 
-def clip_numpy(verts, A, c, tol):
-    """Plain-NumPy twin of :func:`clip_groups_kernel` for one group (no dropping)."""
-    v = np.asarray(verts, dtype=np.float64).reshape(-1, 2)
-    for a, ch in zip(np.asarray(A), np.asarray(c), strict=True):
-        if v.shape[0] == 0:
-            break
-        nxt = np.roll(v, -1, axis=0)
-        d = v @ a - ch
-        dn = np.roll(d, -1)
-        inside = d <= tol
-        inside_n = dn <= tol
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = d / (d - dn)
-        cross = v + t[:, None] * (nxt - v)
-        leave = inside & ~inside_n & (d < 0.0)
-        enter = ~inside & inside_n & (dn < 0.0)
-        rows = []
-        for k in range(v.shape[0]):
-            if inside[k]:
-                rows.append(v[k])
-            if leave[k] or enter[k]:
-                rows.append(cross[k])
-        v = np.array(rows, dtype=np.float64).reshape(-1, 2)
-    return clean_numpy(v, tol)
-
-
-def clip_groups_numpy(verts, A, c, group_off, tol, allow_drop):
-    """Plain-NumPy twin of :func:`clip_groups_kernel`."""
-    v = np.asarray(verts, dtype=np.float64).reshape(-1, 2)
-    n_groups = len(group_off) - 1
-    dropped = np.zeros(n_groups, dtype=bool)
-    for g in range(n_groups):
-        if v.shape[0] == 0:
-            break
-        sl = slice(group_off[g], group_off[g + 1])
-        w = clip_numpy(v, A[sl], c[sl], tol)
-        if w.shape[0] == 0 and allow_drop:
-            dropped[g] = True
-        else:
-            v = w
-    return v, dropped
-
-
 # ---------------------------------------------------------------------------------------------
-# Support halfspaces and polygon scaling (POA Algorithm 4, eqs. (18)–(20))
+# Support halfspaces and polygon scaling (POA-NBP Algorithm 4, eqs. (18)–(20))
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
 def support_halfspaces_kernel(v, max_turn):
     """Support halfspaces ``(A, c, corner)`` of the convex polygon ``v`` in CCW normal order.
 
-    Edge ``m`` (``v_m → v_{m+1}``) gives the halfspace of eq. (18), ``a_m ⊥ (v_{m+1} − v_m)``
-    outward and ``c_m = a_m·v_m``. Where the normal turns by more than ``max_turn`` between two
-    edges, the corner is split into ``p = ceil(turn/max_turn)`` equal turns by ``p − 1`` extra
-    support lines through the vertex (bevels). A point (``m = 1``) gets
-    ``max(3, ceil(2π/max_turn))`` equally spaced normals; a segment's two ends are corners of
-    turn π. ``corner[k]`` is the vertex where line ``k`` meets line ``k + 1`` (cyclic).
+    Edge ``m`` (``v_m → v_{m+1}``) gives the halfspace of POA-NBP eq. (18),
+    ``a_m ⊥ (v_{m+1} − v_m)`` outward and ``c_m = a_m·v_m``. Where the normal turns by more
+    than ``max_turn`` between two edges, the corner is split into ``p = ceil(turn/max_turn)``
+    equal turns by ``p − 1`` extra support lines through the vertex (bevels). A point
+    (``m = 1``) gets ``max(3, ceil(2π/max_turn))`` equally spaced normals; a segment's two ends
+    are corners of turn π. ``corner[k]`` is the vertex where line ``k`` meets line ``k + 1``
+    (cyclic).
     """
     n = v.shape[0]
     if n == 0:
@@ -314,51 +250,15 @@ def support_halfspaces_kernel(v, max_turn):
     return A, c, corner
 
 
-def support_halfspaces_numpy(v, max_turn):
-    """Plain-NumPy twin of :func:`support_halfspaces_kernel`."""
-    v = np.asarray(v, dtype=np.float64).reshape(-1, 2)
-    n = v.shape[0]
-    if n == 0:
-        return np.empty((0, 2)), np.empty(0), np.empty((0, 2))
-    if n == 1:
-        k_pts = max(3, math.ceil(TWO_PI / max_turn - 1e-12))
-        ang = TWO_PI * np.arange(k_pts) / k_pts
-        A = np.column_stack([np.cos(ang), np.sin(ang)])
-        return A, A @ v[0], np.repeat(v, k_pts, axis=0)
-    d = np.roll(v, -1, axis=0) - v
-    ln = np.hypot(d[:, 0], d[:, 1])
-    safe = np.where(ln > 0.0, ln, 1.0)
-    N = np.where((ln > 0.0)[:, None], np.column_stack([d[:, 1], -d[:, 0]]) / safe[:, None], 0.0)
-    N[ln <= 0.0, 0] = 1.0
-    Nn = np.roll(N, -1, axis=0)
-    th = np.arctan2(N[:, 0] * Nn[:, 1] - N[:, 1] * Nn[:, 0], np.sum(N * Nn, axis=1))
-    th = np.where(th < -0.5 * np.pi, th + TWO_PI, th)
-    th = np.maximum(th, 0.0)
-    rows_a, rows_c, rows_p = [], [], []
-    for m in range(n):
-        vn = v[(m + 1) % n]
-        rows_a.append(N[m])
-        rows_c.append(N[m] @ v[m])
-        rows_p.append(vn)
-        p = max(1, math.ceil(th[m] / max_turn - 1e-12))
-        base = math.atan2(N[m, 1], N[m, 0])
-        for s in range(1, p):
-            a = np.array([math.cos(base + th[m] * s / p), math.sin(base + th[m] * s / p)])
-            rows_a.append(a)
-            rows_c.append(a @ vn)
-            rows_p.append(vn)
-    return np.array(rows_a), np.array(rows_c), np.array(rows_p)
-
-
 @njit(cache=True)
 def scaled_vertices_kernel(A, corner, z, tol):
     """Vertices of ``{x : A x <= c + z}`` for support halfspaces from
-    :func:`support_halfspaces_kernel` (POA Algorithm 4, step 6).
+    :func:`support_halfspaces_kernel` (POA-NBP Algorithm 4, step 6).
 
     Vertex ``m`` is where the shifted lines ``m − 1`` and ``m`` meet,
     ``corner_{m−1} + z·(a_{m−1} + a_m)/(1 + a_{m−1}·a_m)`` — the closed form of their
-    intersection (eqs. (19)–(20)): it satisfies ``a·x = c + z`` for both lines and stays well
-    conditioned when adjacent edges are almost parallel. Edge ``m`` (vertex ``m`` → ``m + 1``)
+    intersection (POA-NBP eqs. (19)–(20)): it satisfies ``a·x = c + z`` for both lines and stays
+    well conditioned when adjacent edges are almost parallel. Edge ``m`` (vertex ``m`` → ``m + 1``)
     therefore lies on line ``m``. The result is cleaned (``z = 0`` gives the input polygon).
     """
     k = A.shape[0]
@@ -372,24 +272,8 @@ def scaled_vertices_kernel(A, corner, z, tol):
     return out[:m_out].copy()
 
 
-def scaled_vertices_numpy(A, c, z, tol):
-    """Plain-NumPy twin of :func:`scaled_vertices_kernel`, by solving the 2×2 line systems.
-
-    Takes the offsets ``c`` instead of the corners: vertex ``m`` solves
-    ``[a_{m−1}; a_m] x = [c_{m−1} + z; c_m + z]`` (ill conditioned for nearly parallel
-    neighbours, which the kernel's closed form avoids).
-    """
-    A = np.asarray(A, dtype=np.float64)
-    cz = np.asarray(c, dtype=np.float64) + z
-    Ap = np.roll(A, 1, axis=0)
-    cp = np.roll(cz, 1)
-    M = np.stack([Ap, A], axis=1)
-    out = np.linalg.solve(M, np.column_stack([cp, cz])[..., None])[..., 0]
-    return clean_numpy(out, tol)
-
-
 # ---------------------------------------------------------------------------------------------
-# Point tests and sampling (POA eqs. (21)–(22))
+# Point tests and sampling (POA-NBP eqs. (21)–(22))
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
 def contains_kernel(A, c, points, tol):
@@ -404,11 +288,6 @@ def contains_kernel(A, c, points, tol):
                 break
         out[q] = ok
     return out
-
-
-def contains_numpy(A, c, points, tol):
-    """Plain-NumPy twin of :func:`contains_kernel`."""
-    return np.all(np.asarray(points) @ np.asarray(A).T - np.asarray(c) <= tol, axis=1)
 
 
 @njit(cache=True)
@@ -468,30 +347,8 @@ def fan_sample_kernel(v, u):
     return out
 
 
-def fan_sample_numpy(v, u):
-    """Plain-NumPy twin of :func:`fan_sample_kernel`."""
-    v = np.asarray(v, dtype=np.float64)
-    u = np.asarray(u, dtype=np.float64)
-    m = v.shape[0]
-    if m == 1:
-        return np.repeat(v, u.shape[0], axis=0)
-    if m == 2:
-        return v[0] + u[:, 1:2] * (v[1] - v[0])
-    e1 = v[1:-1] - v[0]
-    e2 = v[2:] - v[0]
-    areas = np.maximum(0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]), 0.0)
-    if areas.sum() <= 0.0:
-        areas = np.ones_like(areas)
-    cum = np.cumsum(areas)
-    tri = np.minimum(np.searchsorted(cum, u[:, 0] * cum[-1], side="right"), m - 3)
-    s, t = u[:, 1].copy(), u[:, 2].copy()
-    flip = s + t > 1.0
-    s[flip], t[flip] = 1.0 - s[flip], 1.0 - t[flip]
-    return v[0] + s[:, None] * e1[tri] + t[:, None] * e2[tri]
-
-
 # ---------------------------------------------------------------------------------------------
-# Minimum-volume enclosing ellipse (Löwner–John), the ellipse baseline of Fig. 9
+# Minimum-volume enclosing ellipse (Löwner–John), the ellipse baseline of POA-NBP Fig. 9
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _weighted_moments(u, X, Y):
@@ -597,43 +454,3 @@ def mvee_kernel(P, eps, max_iter):
             for b in range(2):
                 sig[a, b] *= smax
     return center, sig, it
-
-
-def mvee_numpy(P, eps, max_iter):
-    """Plain-NumPy twin of :func:`mvee_kernel` (same iteration, vectorized)."""
-    P = np.asarray(P, dtype=np.float64)
-    off = P.mean(axis=0)
-    Q = P - off
-    n = Q.shape[0]
-    u = np.full(n, 1.0 / n)
-    it = 0
-    while it < max_iter:
-        it += 1
-        c = u @ Q
-        D = Q - c
-        S = (u[:, None] * D).T @ D
-        if np.linalg.det(S) <= 0.0:
-            break
-        M = 1.0 + np.einsum("ij,jk,ik->i", D, np.linalg.inv(S), D)
-        jmax = int(np.argmax(M))
-        sup = np.flatnonzero(u > 0.0)
-        jmin = int(sup[np.argmin(M[sup])])
-        e_plus, e_minus = M[jmax] / 3.0 - 1.0, 1.0 - M[jmin] / 3.0
-        if e_plus <= eps and e_minus <= eps:
-            break
-        if e_plus >= e_minus:
-            beta = (M[jmax] - 3.0) / (3.0 * (M[jmax] - 1.0))
-            u *= 1.0 - beta
-            u[jmax] += beta
-        else:
-            den = 3.0 * (M[jmin] - 1.0)
-            cap = u[jmin] / (1.0 - u[jmin]) if u[jmin] < 1.0 else 0.0
-            beta = cap if den <= 0.0 else min((3.0 - M[jmin]) / den, cap)
-            u *= 1.0 + beta
-            u[jmin] = max(u[jmin] - beta, 0.0)
-    c = u @ Q
-    D = Q - c
-    sig = 2.0 * (u[:, None] * D).T @ D
-    if np.linalg.det(sig) > 0.0:
-        sig = sig * np.max(np.einsum("ij,jk,ik->i", D, np.linalg.inv(sig), D))
-    return c + off, sig, it

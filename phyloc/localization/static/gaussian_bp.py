@@ -2,10 +2,11 @@
 
 Both use the range matrix convention of :mod:`phyloc.localization.static.static_ranges`
 (``ranges[j, i] = ẑ_{i→j}``, measured by node ``j``) and a Gaussian view of the error model:
-with ``debias`` the error mean ``b`` is removed (``b = 1/λ`` for the exponential model of eq.
-(2), 0 for the Gaussian one) and the variance ``s²`` is matched (``s = 1/λ`` resp. ``σ``).
+with ``debias`` the error mean ``b`` is removed (``b = 1/λ`` for the exponential model of
+POA-NBP eq. (2), 0 for the Gaussian one) and the variance ``s²`` is matched (``s = 1/λ``
+resp. ``σ``).
 
-**Gaussian BP** (:func:`run_gaussian_bp`, 'PBP' of [19]): every agent's belief is
+**Gaussian BP** (:func:`run_gaussian_bp`, 'PBP' of POA-NBP ref. [19]): every agent's belief is
 ``N(μ_j, P_j)``. In iteration ``l`` (parallel schedule, neighbours' beliefs of ``l − 1``),
 agent ``j`` multiplies its prior ``N(μ_0, Λ_0⁻¹)`` (moment match of the uniform prior over the
 region: centre and ``diag(w_x², w_y²)/12``) with one linearized message per link ``i → j``:
@@ -19,7 +20,7 @@ message ``Λ += u uᵀ/R``, ``η += u (ẑ − b − d + uᵀx̄)/R`` with ``R =
 mean (an iterated EKF update, i.e. Gauss–Newton on the MAP cost with fixed neighbour beliefs)
 and clipped to the region. As in the NBP of the paper, neighbours send their full beliefs.
 
-**Weighted least squares** (:func:`run_wls`, 'WLS' of [5]): Gauss–Newton with
+**Weighted least squares** (:func:`run_wls`, 'WLS' of POA-NBP ref. [5]): Gauss–Newton with
 Levenberg–Marquardt damping on
 
 .. math::  F(X) = \\sum_{(j, i)} w_{ji} (\\hat z_{i\\to j} - b - \\lVert x_j - x_i \\rVert)^2,
@@ -30,11 +31,18 @@ once, one damped GN step per iteration (every finite range entry involving an ag
 iteration each agent takes ``n_inner`` damped GN steps on its own position with the anchors
 and its neighbours' previous estimates held fixed (Jacobi).
 
-**Start**: ``initial`` ([n_agents, 2]) or :func:`heuristic_start`: the centroid of an agent's
-anchor neighbours; with a single anchor the point at the measured range from it towards the
-region centre; otherwise the mean of the neighbours' starts (propagated over the graph); the
-region centre for the rest. A deterministic offset of 1 mm (golden-angle directions) separates
-agents that would otherwise start at the same point (a zero distance has no gradient).
+**Start**: ``StaticPrior.initial`` ([n_agents, 2]), else by the option ``start``: :func:`mds_start`
+(the MDS/SMACOF solution of the measured ranges in the anchors' frame; the heuristic start where the
+range graph is disconnected) or :func:`heuristic_start`: the centroid of an agent's anchor
+neighbours; with a single anchor the point at the measured range from it towards the region centre;
+otherwise the mean of the neighbours' starts (propagated over the graph); the region centre for the
+rest. A deterministic offset of 1 mm (golden-angle directions) separates agents that would otherwise
+start at the same point (a zero distance has no gradient).
+
+References
+----------
+.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+   Indoor Localization." ("POA-NBP"; its refs. [19] for PBP and [5] for WLS).
 """
 
 from __future__ import annotations
@@ -43,24 +51,29 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
+from phyloc.localization.initialization import coarse_positions
+from phyloc.localization.results import Result, Timing
 from phyloc.localization.static.static_ranges import (
     LINK_MODES,
     RangeError,
+    StaticMeasurements,
     StaticNetwork,
-    StaticResult,
-    check_error_model,
+    StaticPrior,
+    check_inputs,
     check_region,
-    check_static_network,
     convergence_iteration,
 )
 
 WLS_MODES = ("joint", "distributed")
+#: Starting estimates of :func:`run_gaussian_bp` and :func:`run_wls` without ``prior.initial``.
+STARTS = ("heuristic", "mds")
 _GOLDEN = math.pi * (3.0 - math.sqrt(5.0))
 _EPS_D = 1e-9  # distances below this [m] have no direction: the term is skipped
 
@@ -75,8 +88,14 @@ def _clip(x, region):
     return np.clip(x, (region[0], region[1]), (region[2], region[3]))
 
 
-def heuristic_start(net: StaticNetwork, region, link_mode: str = "own") -> np.ndarray:
-    """Truth-free starting positions ``[n_agents, 2]`` (see the module docstring)."""
+def heuristic_start(net, region, link_mode: str = "own") -> np.ndarray:
+    """Truth-free starting positions ``[n_agents, 2]`` (see the module docstring).
+
+    ``net``: :class:`~phyloc.localization.static.static_ranges.StaticMeasurements` or its
+    :class:`~phyloc.localization.static.static_ranges.StaticNetwork`.
+    """
+    if isinstance(net, StaticMeasurements):
+        net = net.network
     reg = check_region(region)
     centre = np.array([(reg[0] + reg[2]) / 2, (reg[1] + reg[3]) / 2])
     n_ag = net.n_agents
@@ -116,15 +135,56 @@ def heuristic_start(net: StaticNetwork, region, link_mode: str = "own") -> np.nd
     return _clip(start, reg)
 
 
-def _check_initial(initial, net, region, link_mode):
-    if initial is None:
-        return heuristic_start(net, region, link_mode)
-    x = v.finite_array("initial", initial, ndim=2)
-    if x.shape != (net.n_agents, 2):
-        raise ValidationError(
-            "initial", f"array of shape {x.shape}", f"must be ({net.n_agents}, 2)"
+def mds_start(measurements: StaticMeasurements, region) -> np.ndarray | None:
+    """Truth-free MDS/SMACOF start ``[n_agents, 2]`` of the measured ranges in the anchors'
+    frame (:func:`~phyloc.localization.initialization.coarse_positions`), clipped to the
+    region; ``None`` where the range graph is disconnected (no joint solution)."""
+    meas = measurements
+    reg = check_region(region)
+    j, i = np.nonzero(np.isfinite(meas.ranges))
+    links = np.stack([j, i], axis=1)
+    try:
+        sol = coarse_positions(
+            links,
+            meas.ranges[j, i],
+            meas.n_nodes,
+            2,
+            is_anchor=meas.is_anchor,
+            anchor_positions=meas.anchor_positions,
         )
-    return x.copy()
+    except ValidationError:
+        return None
+    return _clip(sol.positions[~meas.is_anchor], reg)
+
+
+def _start(meas: StaticMeasurements, prior: StaticPrior, start: str, link_mode: str):
+    """``(x0 [n_agents, 2], setup time per agent [s], start used)``: ``prior.initial``,
+    else the ``start`` rule (``"mds"`` falls back to the heuristic start when the range graph
+    is disconnected)."""
+    net = meas.network
+    if prior.initial is not None:
+        x = prior.initial
+        if x.shape != (net.n_agents, 2):
+            raise ValidationError(
+                "initial", f"array of shape {x.shape}", f"must be ({net.n_agents}, 2)"
+            )
+        return x.copy(), 0.0, "prior"
+    if start == "mds":
+        t0 = time.perf_counter()
+        x = mds_start(meas, prior.region)
+        if x is not None:
+            return x, (time.perf_counter() - t0) / max(net.n_agents, 1), "mds"
+    return heuristic_start(net, prior.region, link_mode), 0.0, "heuristic"
+
+
+def _timing(t_wall, step_s, agent_t):
+    n_steps, n_ag = agent_t.shape
+    return Timing(
+        wall_s=time.perf_counter() - t_wall,
+        step_s=step_s,
+        agent_s=agent_t.mean(axis=1) if n_ag else np.zeros(n_steps),
+        agent_iterations=n_steps * n_ag,
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -144,15 +204,22 @@ class GaussianBPOptions:
         Ranges entering agent ``j``: its own ``ẑ_{i→j}`` ("own") or also ``ẑ_{j→i}``.
     debias : bool
         Remove the error model's mean from the ranges (True).
+    start : {"heuristic", "mds"}
+        First linearization points when the prior brings none: :func:`heuristic_start` or
+        :func:`mds_start` (falling back to the heuristic start) ("heuristic").
     convergence_tol_m : float
         Mean estimate change [m] below which the run has converged (1e-3).
     stop_on_convergence : bool
     """
 
+    #: The recipe table of these options: ``[localization.pbp]``.
+    recipe_section: ClassVar[str] = "pbp"
+
     n_iterations: int = 10
     n_inner: int = 3
     link_mode: str = "own"
     debias: bool = True
+    start: str = "heuristic"
     convergence_tol_m: float = 1e-3
     stop_on_convergence: bool = False
 
@@ -160,6 +227,7 @@ class GaussianBPOptions:
         for name in ("n_iterations", "n_inner"):
             object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=1))
         v.choice("link_mode", self.link_mode, LINK_MODES)
+        v.choice("start", self.start, STARTS)
         object.__setattr__(
             self, "convergence_tol_m", v.positive("convergence_tol_m", self.convergence_tol_m)
         )
@@ -209,52 +277,52 @@ def gaussian_bp_update(x0, prior_mean, prior_info, nb_mean, nb_cov, z, b, s2, n_
 
 
 def run_gaussian_bp(
-    ranges,
-    anchors,
-    anchor_positions,
+    measurements: StaticMeasurements,
+    prior: StaticPrior,
+    rng: np.random.Generator | None = None,
     options: GaussianBPOptions | None = None,
-    *,
-    region,
-    initial=None,
-    error_model: RangeError | None = None,
-) -> StaticResult:
-    """Parametric (Gaussian) BP with linearized messages, parallel schedule ('PBP' of [19]).
+) -> Result:
+    """Parametric (Gaussian) BP with linearized messages, parallel schedule ('PBP' of POA-NBP
+    ref. [19]).
 
     Parameters
     ----------
-    ranges : [N, N] float64
-        ``ranges[j, i] = ẑ_{i→j}`` [m] (NaN: no link).
-    anchors : [N] bool or sequence of int
-    anchor_positions : [n_anchors, 2] or [N, 2] float64
+    measurements : StaticMeasurements
+    prior : StaticPrior
+        ``region`` (prior moments and clipping) and optional ``initial`` first linearization
+        points ``[n_agents, 2]`` (else ``options.start``).
+    rng : numpy.random.Generator or None
+        Unused (the method is deterministic); part of the common call shape.
     options : GaussianBPOptions, optional
-    region : (xmin, ymin, xmax, ymax)
-        Deployment area: prior moments and clipping.
-    initial : [n_agents, 2] float64, optional
-        First linearization points (default :func:`heuristic_start`).
-    error_model : ExponentialRangeError or GaussianRangeError, optional
-        Default exponential, mean 0.38 m.
 
     Returns
     -------
-    StaticResult
-        ``estimates`` (belief means) and ``covariances`` per iteration, label ``"gbp"``.
+    Result
+        ``estimates [n_iterations, n_agents, 2]`` (belief means after each iteration, the start
+        not included) and ``covariances [n_iterations, n_agents, 2, 2]``; ``timing`` per
+        iteration and mean per agent update; ``diagnostics``: ``agent_time_s``
+        [n_iterations, n_agents], ``converged_iteration`` (int or None), ``start``
+        (``"prior"``, ``"mds"`` or ``"heuristic"``), ``setup_time_per_node_s`` (time per
+        agent of the start [s]; 0 for the prior and heuristic starts). Label ``"gbp"``.
 
     Examples
     --------
-    >>> from phyloc.localization.static.static_ranges import paper_static_scenario
-    >>> sc = paper_static_scenario(np.random.default_rng(3), n_agents=10)
-    >>> run_gaussian_bp(sc.ranges, sc.is_anchor, sc.anchor_positions,
-    ...                 region=sc.region).estimates.shape
-    (10, 10, 2)
+    >>> anchors = np.array([[0.0, 0.0], [20.0, 0.0], [0.0, 20.0], [20.0, 20.0]])
+    >>> z = np.full((5, 5), np.nan)  # node 4, an agent, measured its ranges to the anchors
+    >>> z[4, :4] = [13.2, 17.2, 11.6, 16.0]
+    >>> meas, prior = StaticMeasurements(z, [0, 1, 2, 3], anchors), StaticPrior((0, 0, 20, 20))
+    >>> res = run_gaussian_bp(meas, prior)
+    >>> res.estimates.shape, res.covariances.shape
+    ((10, 1, 2), (10, 1, 2, 2))
     """
+    t_wall = time.perf_counter()
     opt = options if options is not None else GaussianBPOptions()
     if not isinstance(opt, GaussianBPOptions):
         raise ValidationError("options", type(opt).__name__, "must be GaussianBPOptions")
-    net = check_static_network(ranges, anchors, anchor_positions)
-    reg = check_region(region)
-    model = check_error_model(error_model)
-    b, s2 = _moments(model, opt.debias)
-    mean = _check_initial(initial, net, reg, opt.link_mode)
+    meas, prior = check_inputs(measurements, prior, need_rng=False)
+    net, reg = meas.network, prior.region
+    b, s2 = _moments(meas.error_model, opt.debias)
+    mean, setup_s, start = _start(meas, prior, opt.start, opt.link_mode)
     n_ag = net.n_agents
     mu0 = np.array([(reg[0] + reg[2]) / 2, (reg[1] + reg[3]) / 2])
     P0 = np.diag([(reg[2] - reg[0]) ** 2 / 12.0, (reg[3] - reg[1]) ** 2 / 12.0])
@@ -265,8 +333,10 @@ def run_gaussian_bp(
 
     L = opt.n_iterations
     out_m, out_P, out_t = np.empty((L, n_ag, 2)), np.empty((L, n_ag, 2, 2)), np.zeros((L, n_ag))
+    step_t = np.zeros(L)
     n_done = L
     for it in range(L):
+        t_it = time.perf_counter()
         new_m, new_P = mean.copy(), cov.copy()
         for a in range(n_ag):
             t0 = time.perf_counter()
@@ -286,17 +356,22 @@ def run_gaussian_bp(
             out_t[it, a] = time.perf_counter() - t0
         mean, cov = new_m, new_P
         out_m[it], out_P[it] = mean, cov
+        step_t[it] = time.perf_counter() - t_it
         if opt.stop_on_convergence and convergence_iteration(
             out_m[: it + 1], opt.convergence_tol_m
         ):
             n_done = it + 1
             break
-    return StaticResult(
+    return Result(
         estimates=out_m[:n_done],
-        agents=net.agents,
-        converged_iteration=convergence_iteration(out_m[:n_done], opt.convergence_tol_m),
-        time_per_node_s=out_t[:n_done],
         covariances=out_P[:n_done],
+        timing=_timing(t_wall, step_t[:n_done], out_t[:n_done]),
+        diagnostics={
+            "agent_time_s": out_t[:n_done],
+            "converged_iteration": convergence_iteration(out_m[:n_done], opt.convergence_tol_m),
+            "start": start,
+            "setup_time_per_node_s": setup_s,
+        },
         label="gbp",
     )
 
@@ -323,10 +398,15 @@ class WLSOptions:
         Remove the error model's mean (True).
     damping : float
         Initial Levenberg–Marquardt factor λ (relative to ``diag(JᵀJ)``), > 0 (1e-3).
+    start : {"heuristic", "mds"}
+        Start when the prior brings none (as :class:`GaussianBPOptions`) ("heuristic").
     convergence_tol_m : float
         Mean estimate change [m] below which the run has converged (1e-4).
     stop_on_convergence : bool
     """
+
+    #: The recipe table of these options: ``[localization.wls]``.
+    recipe_section: ClassVar[str] = "wls"
 
     n_iterations: int = 20
     mode: str = "joint"
@@ -334,6 +414,7 @@ class WLSOptions:
     link_mode: str = "both"
     debias: bool = True
     damping: float = 1e-3
+    start: str = "heuristic"
     convergence_tol_m: float = 1e-4
     stop_on_convergence: bool = False
 
@@ -342,6 +423,7 @@ class WLSOptions:
             object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=1))
         v.choice("mode", self.mode, WLS_MODES)
         v.choice("link_mode", self.link_mode, LINK_MODES)
+        v.choice("start", self.start, STARTS)
         for name in ("damping", "convergence_tol_m"):
             object.__setattr__(self, name, v.positive(name, getattr(self, name)))
 
@@ -413,53 +495,52 @@ def _lm_step(pos, agent_nodes, rows, cols, z, w, b, col_of, lam, region, max_tri
 
 
 def run_wls(
-    ranges,
-    anchors,
-    anchor_positions,
+    measurements: StaticMeasurements,
+    prior: StaticPrior,
+    rng: np.random.Generator | None = None,
     options: WLSOptions | None = None,
     *,
-    region,
-    initial=None,
-    error_model: RangeError | None = None,
     link_weights=None,
-) -> StaticResult:
-    """Weighted least-squares localization by damped Gauss–Newton ('WLS' of [5]).
+) -> Result:
+    """Weighted least-squares localization by damped Gauss–Newton ('WLS' of POA-NBP ref. [5]).
 
     Parameters
     ----------
-    ranges : [N, N] float64
-        ``ranges[j, i] = ẑ_{i→j}`` [m] (NaN: no link).
-    anchors : [N] bool or sequence of int
-    anchor_positions : [n_anchors, 2] or [N, 2] float64
+    measurements : StaticMeasurements
+        Its error model gives ``b`` and the default weights ``1/s²``.
+    prior : StaticPrior
+        ``region`` (iterates are clipped to it) and optional ``initial`` ``[n_agents, 2]``
+        (else ``options.start``).
+    rng : numpy.random.Generator or None
+        Unused (the method is deterministic); part of the common call shape.
     options : WLSOptions, optional
-    region : (xmin, ymin, xmax, ymax)
-        Iterates are clipped to it.
-    initial : [n_agents, 2] float64, optional
-        Start (default :func:`heuristic_start`).
-    error_model : ExponentialRangeError or GaussianRangeError, optional
-        Gives ``b`` and the default weights ``1/s²``.
     link_weights : [N, N] float64, optional
         ``w_ji`` per range entry (>= 0), overriding ``1/s²``.
 
     Returns
     -------
-    StaticResult
-        ``estimates`` after every iteration, label ``"wls.joint"`` / ``"wls.distributed"``.
+    Result
+        ``estimates [n_iterations, n_agents, 2]`` (the iterate after each iteration, the start
+        not included), no covariances; ``timing`` (joint mode: the joint time of an iteration
+        divided by the number of agents is each agent's time); ``diagnostics`` as
+        :func:`run_gaussian_bp`. Label ``"wls.joint"`` / ``"wls.distributed"``.
 
     Examples
     --------
-    >>> from phyloc.localization.static.static_ranges import paper_static_scenario
-    >>> sc = paper_static_scenario(np.random.default_rng(3), n_agents=10)
-    >>> run_wls(sc.ranges, sc.is_anchor, sc.anchor_positions, region=sc.region).final.shape
-    (10, 2)
+    >>> anchors = np.array([[0.0, 0.0], [20.0, 0.0], [0.0, 20.0], [20.0, 20.0]])
+    >>> z = np.full((5, 5), np.nan)  # node 4, an agent, measured its ranges to the anchors
+    >>> z[4, :4] = [13.2, 17.2, 11.6, 16.0]
+    >>> meas, prior = StaticMeasurements(z, [0, 1, 2, 3], anchors), StaticPrior((0, 0, 20, 20))
+    >>> run_wls(meas, prior).estimates[-1].round(1).tolist()  # the agent is at (7, 11)
+    [[7.0, 11.0]]
     """
+    t_wall = time.perf_counter()
     opt = options if options is not None else WLSOptions()
     if not isinstance(opt, WLSOptions):
         raise ValidationError("options", type(opt).__name__, "must be WLSOptions")
-    net = check_static_network(ranges, anchors, anchor_positions)
-    reg = check_region(region)
-    model = check_error_model(error_model)
-    b, s2 = _moments(model, opt.debias)
+    meas, prior = check_inputs(measurements, prior, need_rng=False)
+    net, reg = meas.network, prior.region
+    b, s2 = _moments(meas.error_model, opt.debias)
     n = net.ranges.shape[0]
     W = None
     if link_weights is not None:
@@ -468,7 +549,7 @@ def run_wls(
             raise ValidationError(
                 "link_weights", f"array of shape {W.shape}", f"must be ({n}, {n}), finite, >= 0"
             )
-    x0 = _check_initial(initial, net, reg, opt.link_mode)
+    x0, setup_s, start = _start(meas, prior, opt.start, opt.link_mode)
     n_ag = net.n_agents
     pos = net.positions.copy()
     pos[net.agents] = x0
@@ -476,6 +557,7 @@ def run_wls(
 
     L = opt.n_iterations
     out, out_t = np.empty((L, n_ag, 2)), np.zeros((L, n_ag))
+    step_t = np.zeros(L)
     n_done = L
     if opt.mode == "joint":
         col_of = np.full(n, -1)
@@ -490,6 +572,7 @@ def run_wls(
             term_sets.append((sel, col_of))
         lams = np.full(n_ag, opt.damping)
     for it in range(L):
+        t_it = time.perf_counter()
         if opt.mode == "joint":
             t0 = time.perf_counter()
             if rows.size and n_ag:
@@ -519,13 +602,19 @@ def run_wls(
                 out_t[it, a] = time.perf_counter() - t0
             pos = new
         out[it] = pos[net.agents]
+        step_t[it] = time.perf_counter() - t_it
         if opt.stop_on_convergence and convergence_iteration(out[: it + 1], opt.convergence_tol_m):
             n_done = it + 1
             break
-    return StaticResult(
+    return Result(
         estimates=out[:n_done],
-        agents=net.agents,
-        converged_iteration=convergence_iteration(out[:n_done], opt.convergence_tol_m),
-        time_per_node_s=out_t[:n_done],
+        covariances=None,
+        timing=_timing(t_wall, step_t[:n_done], out_t[:n_done]),
+        diagnostics={
+            "agent_time_s": out_t[:n_done],
+            "converged_iteration": convergence_iteration(out[:n_done], opt.convergence_tol_m),
+            "start": start,
+            "setup_time_per_node_s": setup_s,
+        },
         label=f"wls.{opt.mode}",
     )

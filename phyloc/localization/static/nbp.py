@@ -3,70 +3,82 @@
 Every agent ``j`` holds a particle belief of ``N_S`` samples. One iteration ``l`` (parallel,
 Jacobi schedule: every agent uses its neighbours' beliefs of iteration ``l − 1``):
 
-1. **Message filtering** (eqs. (4), (5)). For every link ``i → j`` with range ``ẑ_{i→j}``, the
-   message is the particle set ``y_k = x_i^{(k)} + (ẑ_{i→j} − ε_k)·u_k`` with ``x_i^{(k)}``
-   the ``N_S`` belief samples of ``i`` (the anchor position for an anchor), ``ε_k`` drawn from
-   the error model and ``u_k`` a uniformly random unit vector. With ``jacobian_weights`` the
-   samples are weighted by ``|ẑ − ε_k|``, which turns the polar sampling density
-   ``p_ε(ẑ − ρ)/(2πρ)`` into the message density ``∝ p(ẑ | ρ)`` in the plane (the paper's eq.
-   (5) draws them with equal weights; ``jacobian_weights=False`` reproduces that).
-   As in the paper (eq. (6): the outgoing message is the belief), neighbours send their full
-   belief, not the extrinsic one.
-2. **Kernel density estimates** (eq. (7)): an isotropic Gaussian kernel per message with
-   bandwidth ``h`` chosen by least-squares cross-validation (``bandwidth="lscv"``, the paper's
-   choice [32]), Silverman's rule of thumb (``"silverman"``: ``h = σ̄·n_eff^{−1/6}``,
-   ``σ̄² = ½ tr Σ̂``, the 2-D normal-reference rule) or a fixed value [m]. Silverman's rule is
-   built for unimodal densities and over-smooths the ring-shaped range messages (``σ̄`` is of
-   the order of the range); LSCV picks ``h`` on the grid ``√2·h_S·2^{−t/2}``,
-   ``t = 0 … 12``, by minimising the exact Gaussian-kernel LSCV score (computed on a random
-   subset of at most ``lscv_max_samples`` samples, rescaled by ``(n_sub/n)^{1/6}``). Every
-   bandwidth is at least ``min_bandwidth_m``.
-3. **Message multiplication** by importance sampling (eqs. (8), (9)): draw ``N_S`` samples
-   ``x^{(k)}`` from a proposal ``q`` and weight them by
+1. **Message filtering** (POA-NBP eqs. (4), (5)). For every link ``i → j`` with range
+   ``ẑ_{i→j}``, the message is the particle set ``y_k = x_i^{(k)} + (ẑ_{i→j} − ε_k)·u_k`` with
+   ``x_i^{(k)}`` the ``N_S`` belief samples of ``i`` (the anchor position for an anchor),
+   ``ε_k`` drawn from the error model and ``u_k`` a uniformly random unit vector. With
+   ``jacobian_weights`` the samples are weighted by ``|ẑ − ε_k|``, which turns the polar
+   sampling density ``p_ε(ẑ − ρ)/(2πρ)`` into the message density ``∝ p(ẑ | ρ)`` in the plane
+   (POA-NBP eq. (5) draws them with equal weights; ``jacobian_weights=False`` reproduces
+   that). As in the paper (POA-NBP eq. (6): the outgoing message is the belief), neighbours
+   send their full belief, not the extrinsic one.
+2. **Kernel density estimates** (POA-NBP eq. (7)): an isotropic Gaussian kernel per message
+   with bandwidth ``h`` chosen by least-squares cross-validation (``bandwidth="lscv"``, the
+   paper's choice, its ref. [32]), Silverman's rule of thumb (``"silverman"``:
+   ``h = σ̄·n_eff^{−1/6}``, ``σ̄² = ½ tr Σ̂``, the 2-D normal-reference rule) or a fixed value
+   [m]. Silverman's rule is built for unimodal densities and over-smooths the ring-shaped range
+   messages (``σ̄`` is of the order of the range); LSCV picks ``h`` on the grid
+   ``√2·h_S·2^{−t/2}``, ``t = 0 … 12``, by minimising the exact Gaussian-kernel LSCV score
+   (computed on a random subset of at most ``lscv_max_samples`` samples, rescaled by
+   ``(n_sub/n)^{1/6}``). Every bandwidth is at least ``min_bandwidth_m``.
+3. **Message multiplication** by importance sampling (POA-NBP eqs. (8), (9)): draw ``N_S``
+   samples ``x^{(k)}`` from a proposal ``q`` and weight them by
    ``log w = Σ_{agent i} log μ̂_{i→j}(x) + Σ_{anchor i} log p(ẑ_{i→j} | x, x_i) + log p(x)
    − log q(x)`` (anchor messages are evaluated exactly with the error model's likelihood, the
-   prior ``p(x)`` is uniform over ``region``); weights are normalised with logsumexp. Samples
+   prior ``p(x)`` is uniform over the region); weights are normalised with logsumexp. Samples
    outside the region or outside a polygon proposal get weight exactly zero. Proposals:
 
-   - ``"min_entropy"`` ([19] 'NBP min.'): the KDE of the incoming message of least entropy,
-     measured by its Gaussian upper bound ``½ log det(Σ̂ + h² I)``;
-   - ``"mixture"`` ([27]): ``(1 − ε)·(1/M) Σ_m μ̂_m + ε·U(region)``, ``ε = uniform_fraction``;
-   - ``"parsimonious"`` ([25] 'NBP par.'): ``(1 − ε)·KDE(previous belief) + ε·U(region)``,
-     the KDE of the agent's weighted samples of its last update with Silverman's bandwidth;
-     while the belief is still the uniform prior the agent uses ``"mixture"`` instead;
-   - ``"polygon"`` (POA-NBP eq. (21)): uniform in the agent's convex polygon
-     ``q = 1/A_p`` inside, 0 outside.
+   - ``"min_entropy"`` (POA-NBP ref. [19], 'NBP min.'): the KDE of the incoming message of
+     least entropy, measured by its Gaussian upper bound ``½ log det(Σ̂ + h² I)``;
+   - ``"mixture"`` (POA-NBP ref. [27]): ``(1 − ε)·(1/M) Σ_m μ̂_m + ε·U(region)``,
+     ``ε = uniform_fraction``;
+   - ``"parsimonious"`` (POA-NBP ref. [25], 'NBP par.'): ``(1 − ε)·KDE(previous belief) +
+     ε·U(region)``, the KDE of the agent's weighted samples of its last update with
+     Silverman's bandwidth; while the belief is still the uniform prior the agent uses
+     ``"mixture"`` instead;
+   - ``"polygon"`` (POA-NBP eq. (21)): uniform in the agent's convex support region
+     ``q = 1/A_p`` inside, 0 outside. The regions come from the prior
+     (``StaticPrior.polygons``) or are computed by the method from the measurements
+     (``NBPOptions.support``: POA, POA-NBP Algorithm 1, or the ellipse baseline).
 
-4. **Estimate and resampling**: the MMSE estimate is the weighted mean (§II-B); the belief for
-   the next iteration is a systematic resample of ``N_S`` equally weighted samples.
+4. **Estimate and resampling**: the MMSE estimate is the weighted mean (POA-NBP §II-B); the
+   belief for the next iteration is a systematic resample of ``N_S`` equally weighted samples.
 
-Agents start from a uniform belief over ``region`` (uniform over their polygon when the
-polygon proposal is used: the polygon contains the support of the marginal, §III). An agent
-whose belief is still the uniform prior sends no messages (they carry almost no information,
-as in [3]); an agent without any usable message keeps its belief, so an isolated agent stays
-uniform over the region and its estimate is the region's centre (never NaN). If every
-proposal sample of an agent has zero weight the agent keeps its previous belief too.
+Agents start from a uniform belief over the region (uniform over their polygon when the
+polygon proposal is used: the polygon contains the support of the marginal, POA-NBP §III). An
+agent whose belief is still the uniform prior sends no messages (they carry almost no
+information, as in POA-NBP ref. [3]); an agent without any usable message keeps its belief, so
+an isolated agent stays uniform over the region and its estimate is the region's centre (never
+NaN). If every proposal sample of an agent has zero weight the agent keeps its previous belief
+too.
 
 **Convergence**: with ``c_l`` the mean over agents of ``‖x̂^{(l)} − x̂^{(l−1)}‖``, the run has
 converged at the first ``l`` with ``c_l < convergence_tol_m`` or ``c_l > (1 −
 convergence_rel)·c_{l−1}``: NBP estimates keep moving by their Monte Carlo error (≈ 0.1–0.8 m
-per iteration at ``N_S = 200`` in the §V network), so an absolute threshold alone is never met;
-the plateau of ``c_l`` is the truth-free counterpart of the paper's footnote 5 (the average
-error no longer changes notably). ``stop_on_convergence`` ends the run there.
+per iteration at ``N_S = 200`` in the POA-NBP §V network), so an absolute threshold alone is
+never met; the plateau of ``c_l`` is the truth-free counterpart of POA-NBP §V footnote 5 (the
+average error no longer changes notably). ``stop_on_convergence`` ends the run there.
 
-**Cost**: the O(|S_{→j}|·N_S²) KDE evaluation (eq. (8)) is :func:`kde_logpdf_kernel` (numba,
-serial) with the plain-NumPy twin :func:`kde_logpdf_numpy` (``backend="numpy"``); the LSCV
-score, O(N_S²) per message up to ``lscv_max_samples``, is :func:`lscv_grid_kernel` /
-:func:`lscv_grid_numpy`, both in the private module :mod:`phyloc.localization.static._nbp_kernels`.
-Measured in the §V network (≈ 12.5 links per agent, one loaded
-2-core machine): ≈ 3 / 5 / 10 / 24 ms per agent and iteration at N_S = 100 / 200 / 400 /
-800 with the polygon proposal — at these sizes the O(N_S) per-message work and the capped
+**Cost**: the O(|S_{→j}|·N_S²) KDE evaluation (POA-NBP eq. (8)) is :func:`kde_logpdf_kernel`
+(numba, serial) and the LSCV score, O(N_S²) per message up to ``lscv_max_samples``, is
+:func:`lscv_grid_kernel`, both in the private module
+:mod:`phyloc.localization.static._nbp_kernels` (their plain-NumPy references are test code,
+``tests/naive_static.py``). Measured in the POA-NBP §V network (≈ 12.5 links per agent, one
+loaded 2-core machine): ≈ 3 / 5 / 10 / 24 ms per agent and iteration at N_S = 100 / 200 / 400
+/ 800 with the polygon proposal — at these sizes the O(N_S) per-message work and the capped
 LSCV weigh as much as the quadratic KDE, which itself grows as N_S² (≈ 0.2 / 0.9 / 4.6 ms for
-10 messages at N_S = 100 / 200 / 400, 20–40× faster than the NumPy twin, depending on the load).
+10 messages at N_S = 100 / 200 / 400, 20–40× faster than the NumPy reference, depending on the
+load).
 
-Polygons: any object with ``.area`` [m²], ``.contains(points [n, 2]) -> bool [n]`` and
-``.sample_uniform(n, rng) -> [n, 2]`` (e.g. :class:`phyloc.localization.static.polygons.ConvexPolygon`);
-this module does not import the polygon module.
+Support regions: any object with ``.area`` [m²], ``.contains(points [n, 2]) -> bool [n]`` and
+``.sample_uniform(n, rng) -> [n, 2]`` (e.g.
+:class:`phyloc.localization.static.polygons.ConvexPolygon` or
+:class:`~phyloc.localization.static.polygons.EllipseRegion`).
+
+References
+----------
+.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+   Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations
@@ -75,6 +87,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -82,21 +95,18 @@ from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
 from phyloc.localization.particles import systematic_indices
-from phyloc.localization.static._nbp_kernels import (
-    LSCV_GRID,
-    kde_logpdf_kernel,
-    kde_logpdf_numpy,
-    lscv_grid_kernel,
-    lscv_grid_numpy,
-)
+from phyloc.localization.results import Result, Timing
+from phyloc.localization.static._nbp_kernels import LSCV_GRID, kde_logpdf_kernel, lscv_grid_kernel
+from phyloc.localization.static.polygons import ellipse_outer_approximation, poa
 from phyloc.localization.static.static_ranges import (
     LINK_MODES,
     RangeError,
+    StaticMeasurements,
     StaticNetwork,
-    StaticResult,
+    StaticPrior,
     check_error_model,
+    check_inputs,
     check_region,
-    check_static_network,
     convergence_iteration,
 )
 
@@ -104,7 +114,8 @@ from phyloc.localization.static.static_ranges import (
 PROPOSALS = ("min_entropy", "mixture", "parsimonious", "polygon")
 #: Bandwidth rules (or a float in metres).
 BANDWIDTH_RULES = ("lscv", "silverman")
-BACKENDS = ("numba", "numpy")
+#: Support regions of the polygon proposal that NBP computes itself (:class:`NBPOptions`).
+SUPPORTS = ("none", "poa", "ellipse")
 
 
 def logsumexp(a, axis=None, keepdims=False):
@@ -125,7 +136,7 @@ def _normalized_log(weights: np.ndarray) -> np.ndarray:
     return lw - logsumexp(lw, axis=-1, keepdims=True)
 
 
-def kde_logpdf(points, centers, weights, bandwidths, *, backend: str = "numba") -> np.ndarray:
+def kde_logpdf(points, centers, weights, bandwidths) -> np.ndarray:
     """Log-density of Gaussian KDEs (POA-NBP eq. (7)) at ``points``.
 
     .. math::  \\log \\hat\\mu_m(x) = \\log \\sum_k w_{mk}\\, \\mathcal N(x; y_{mk}, h_m^2 I)
@@ -140,7 +151,6 @@ def kde_logpdf(points, centers, weights, bandwidths, *, backend: str = "numba") 
         Non-negative sample weights, each row with a positive sum (normalised here).
     bandwidths : float or [M] float64
         Kernel standard deviations ``h_m`` [m], > 0.
-    backend : {"numba", "numpy"}
 
     Returns
     -------
@@ -152,7 +162,6 @@ def kde_logpdf(points, centers, weights, bandwidths, *, backend: str = "numba") 
     >>> round(float(kde_logpdf(x, np.zeros((1, 2)), [1.0], 1.0)[0]), 6)  # log N(0; 0, I)
     -1.837877
     """
-    v.choice("backend", backend, BACKENDS)
     pts = v.finite_array("points", points, ndim=2)
     c = v.finite_array("centers", centers)
     single = c.ndim == 2
@@ -168,13 +177,11 @@ def kde_logpdf(points, centers, weights, bandwidths, *, backend: str = "numba") 
     h = np.broadcast_to(v.finite_array("bandwidths", bandwidths), (c.shape[0],)).copy()
     if np.any(h <= 0):
         raise ValidationError("bandwidths", float(h.min()), "must be > 0")
-    out = _kde(pts, c, _normalized_log(w), h, backend)
+    out = _kde(pts, c, _normalized_log(w), h)
     return out[0] if single else out
 
 
-def _kde(points, centers, log_weights, bandwidths, backend):
-    if backend == "numpy":
-        return kde_logpdf_numpy(points, centers, log_weights, bandwidths)
+def _kde(points, centers, log_weights, bandwidths):
     out = np.empty((centers.shape[0], points.shape[0]))
     kde_logpdf_kernel(
         np.ascontiguousarray(points),
@@ -209,9 +216,7 @@ def _silverman(x, w):
     return math.sqrt(max(0.5 * np.trace(cov), 0.0)) * n_eff ** (-1.0 / 6.0)
 
 
-def lscv_bandwidth(
-    samples, weights=None, *, rng=None, max_samples: int = 256, backend: str = "numba"
-) -> float:
+def lscv_bandwidth(samples, weights=None, *, rng=None, max_samples: int = 256) -> float:
     """Least-squares cross-validation bandwidth of a 2-D Gaussian KDE (POA-NBP eq. (7), [32]).
 
     Minimises the exact LSCV score over ``h_t = √2·h_S·2^{−t/2}``, ``t = 0 … 12``
@@ -224,10 +229,10 @@ def lscv_bandwidth(
     w = w / w.sum()
     if x.shape[0] > max_samples and not isinstance(rng, np.random.Generator):
         raise ValidationError("rng", rng, f"a Generator is needed above {max_samples} samples")
-    return _lscv(x, w, rng, max_samples, v.choice("backend", backend, BACKENDS))
+    return _lscv(x, w, rng, max_samples)
 
 
-def _lscv(x, w, rng, max_samples, backend):
+def _lscv(x, w, rng, max_samples):
     h_s = _silverman(x, w)
     if h_s <= 0.0 or x.shape[0] < 3:
         return h_s
@@ -241,11 +246,8 @@ def _lscv(x, w, rng, max_samples, backend):
     h0 = math.sqrt(2.0) * _silverman(x, w)
     if h0 <= 0.0:
         return h_s
-    if backend == "numpy":
-        score = lscv_grid_numpy(x, w, h0, LSCV_GRID)
-    else:
-        score = np.empty(LSCV_GRID)
-        lscv_grid_kernel(np.ascontiguousarray(x), np.ascontiguousarray(w), h0, score)
+    score = np.empty(LSCV_GRID)
+    lscv_grid_kernel(np.ascontiguousarray(x), np.ascontiguousarray(w), h0, score)
     return h0 * 0.5 ** (int(np.argmin(score)) / 2.0) * scale
 
 
@@ -260,7 +262,7 @@ class Message:
     weights : [K] float64
         Normalised weights.
     bandwidth : float
-        Kernel standard deviation ``h`` [m] of eq. (7).
+        Kernel standard deviation ``h`` [m] of POA-NBP eq. (7).
     anchor : (position [2], z) or None
         For a message from an anchor: its position and the range; the message product then
         evaluates the exact likelihood ``p(z | ‖x − position‖)`` instead of the KDE (the KDE is
@@ -282,7 +284,7 @@ class Message:
 def range_message_samples(
     sources, z: float, error_model: RangeError, rng: np.random.Generator, *, jacobian=True
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Samples of the message of a range link (message filtering, eqs. (4), (5)).
+    """Samples of the message of a range link (message filtering, POA-NBP eqs. (4), (5)).
 
     ``y_k = sources[k] + (z − ε_k)·(cos θ_k, sin θ_k)``, ``ε_k`` from ``error_model``,
     ``θ_k ~ U[0, 2π)``; weights ``∝ |z − ε_k|`` with ``jacobian`` (the density of ``y`` in the
@@ -346,7 +348,7 @@ def _check_polygon(poly, name="polygon"):
 
 @dataclass(frozen=True, eq=False)
 class Product:
-    """Importance-sampled product of messages (eqs. (8), (9)).
+    """Importance-sampled product of messages (POA-NBP eqs. (8), (9)).
 
     Attributes
     ----------
@@ -369,7 +371,7 @@ class Product:
 
     @property
     def mean(self) -> np.ndarray:
-        """MMSE estimate ``Σ_k v_k x^{(k)}`` (§II-B)."""
+        """MMSE estimate ``Σ_k v_k x^{(k)}`` (POA-NBP §II-B)."""
         return self.weights @ self.samples
 
     @property
@@ -386,7 +388,6 @@ def _product(
     region,
     uniform_fraction,
     error_model,
-    backend,
     polygon=None,
     previous=None,
     region_prior=True,
@@ -434,7 +435,7 @@ def _product(
             centers[r, :k] = messages[i].samples
             lw[r, :k] = _normalized_log(messages[i].weights)
         h = np.array([messages[i].bandwidth for i in kde_idx])
-        vals = _kde(X, centers, lw, h, backend)
+        vals = _kde(X, centers, lw, h)
         logk = {i: vals[r] for r, i in enumerate(kde_idx)}
 
     log_t = np.zeros(n)
@@ -466,7 +467,6 @@ def _product(
                     previous.samples[None],
                     _normalized_log(previous.weights[None]),
                     np.array([previous.bandwidth]),
-                    backend,
                 )[0]
                 log_q = np.logaddexp(
                     math.log1p(-eps) + prev if eps < 1 else -np.inf,
@@ -497,9 +497,9 @@ def message_product(
     polygon=None,
     previous: Message | None = None,
     region_prior: bool = True,
-    backend: str = "numba",
 ) -> Product:
-    """Importance-sampled product of incoming messages (message multiplication, eqs. (6)–(9)).
+    """Importance-sampled product of incoming messages (message multiplication, POA-NBP
+    eqs. (6)–(9)).
 
     Parameters
     ----------
@@ -520,15 +520,13 @@ def message_product(
     previous : Message, optional
         Previous belief, for ``"parsimonious"`` (None: uniform over the region).
     region_prior : bool
-        Zero weight outside ``region`` (uniform prior, §III-B).
-    backend : {"numba", "numpy"}
+        Zero weight outside ``region`` (uniform prior, POA-NBP §III-B).
 
     Returns
     -------
     Product
     """
     v.choice("proposal", proposal, PROPOSALS)
-    v.choice("backend", backend, BACKENDS)
     msgs = list(messages)
     if not msgs or not all(isinstance(m, Message) for m in msgs):
         raise ValidationError("messages", messages, "must be a non-empty sequence of Message")
@@ -567,7 +565,6 @@ def message_product(
         check_region(region),
         eps,
         check_error_model(error_model),
-        backend,
         polygon=polygon,
         previous=previous,
         region_prior=bool(region_prior),
@@ -579,16 +576,25 @@ def message_product(
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class NBPOptions:
-    """Options of :func:`run_nbp`.
+    """Options of :func:`run_nbp` (recipe table ``[localization.nbp]``).
 
     Parameters
     ----------
     n_samples : int
         ``N_S`` samples per belief and message (200).
     n_iterations : int
-        ``N_iter`` (10).
+        ``N_iter`` message-passing iterations (10).
     proposal : {"min_entropy", "mixture", "parsimonious", "polygon"}
         Importance-sampling proposal (module docstring). Default ``"mixture"``.
+    support : {"none", "poa", "ellipse"}
+        Support regions of the ``"polygon"`` proposal that the method computes from the
+        measurements when the prior brings none (``StaticPrior.polygons``): ``"poa"`` the
+        polygon outer-approximation (POA-NBP Algorithm 1, ``N_E = poa_n_edges``,
+        ``N_FS = poa_n_fs``, offsets drawn from the run's generator first), ``"ellipse"`` the
+        ellipse outer-approximation of ``poa_n_fs`` iterations, ``"none"`` (default) no
+        support (the polygon proposal then needs ``StaticPrior.polygons``).
+    poa_n_edges, poa_n_fs : int
+        ``N_E >= 3`` and ``N_FS >= 1`` of the support (16, 2; POA-NBP §V-B).
     uniform_fraction : float
         ``ε`` of the mixture/parsimonious proposals, in [0, 1] (0.1).
     bandwidth : {"lscv", "silverman"} or float
@@ -598,12 +604,12 @@ class NBPOptions:
     lscv_max_samples : int
         Subset size of the LSCV score (256).
     jacobian_weights : bool
-        Weight message samples by ``|z − ε|`` (True; False: equal weights, eq. (5)).
+        Weight message samples by ``|z − ε|`` (True; False: equal weights, POA-NBP eq. (5)).
     link_mode : {"own", "both"}
         ``"own"``: agent ``j`` uses the ranges it measured, ``ẑ_{i→j}`` (distributed);
-        ``"both"``: also ``ẑ_{j→i}`` (both factors of eq. (3)).
+        ``"both"``: also ``ẑ_{j→i}`` (both factors of POA-NBP eq. (3)).
     region_prior : bool
-        Uniform prior over ``region`` (zero weight outside) (True).
+        Uniform prior over the region (zero weight outside) (True).
     convergence_tol_m : float
         Mean estimate change [m] below which the run has converged (0.01).
     convergence_rel : float
@@ -612,13 +618,17 @@ class NBPOptions:
         (:func:`~phyloc.localization.static.static_ranges.convergence_iteration`).
     stop_on_convergence : bool
         End the run at the convergence iteration (False: run ``n_iterations``).
-    backend : {"numba", "numpy"}
-        KDE/LSCV kernels.
     """
+
+    #: The recipe table of these options: ``[localization.nbp]``.
+    recipe_section: ClassVar[str] = "nbp"
 
     n_samples: int = 200
     n_iterations: int = 10
     proposal: str = "mixture"
+    support: str = "none"
+    poa_n_edges: int = 16
+    poa_n_fs: int = 2
     uniform_fraction: float = 0.1
     bandwidth: str | float = "lscv"
     min_bandwidth_m: float = 0.01
@@ -629,14 +639,19 @@ class NBPOptions:
     convergence_tol_m: float = 0.01
     convergence_rel: float = 0.25
     stop_on_convergence: bool = False
-    backend: str = "numba"
 
     def __post_init__(self):
-        for name, lo in (("n_samples", 2), ("n_iterations", 1), ("lscv_max_samples", 8)):
+        for name, lo in (
+            ("n_samples", 2),
+            ("n_iterations", 1),
+            ("lscv_max_samples", 8),
+            ("poa_n_edges", 3),
+            ("poa_n_fs", 1),
+        ):
             object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=lo))
         v.choice("proposal", self.proposal, PROPOSALS)
+        v.choice("support", self.support, SUPPORTS)
         v.choice("link_mode", self.link_mode, LINK_MODES)
-        v.choice("backend", self.backend, BACKENDS)
         eps = v.finite("uniform_fraction", self.uniform_fraction)
         if not 0.0 <= eps <= 1.0:
             raise ValidationError("uniform_fraction", eps, "must be in [0, 1]")
@@ -657,26 +672,6 @@ class NBPOptions:
         """Build from a recipe table; unknown keys are errors naming the closest valid key."""
         check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
         return cls(**d)
-
-
-@dataclass(frozen=True, eq=False)
-class NBPResult(StaticResult):
-    """:class:`~phyloc.localization.static.static_ranges.StaticResult` of NBP plus its particles.
-
-    Attributes
-    ----------
-    samples : [n_agents, N_S, 2] float64
-        Weighted samples of the last belief update of each agent (the initial uniform samples
-        for agents never updated).
-    weights : [n_agents, N_S] float64
-        Their normalised weights.
-    ess : [n_iter, n_agents] float64
-        Effective sample size of each update (0 where the agent was not updated).
-    """
-
-    samples: np.ndarray | None = None
-    weights: np.ndarray | None = None
-    ess: np.ndarray | None = None
 
 
 def _check_polygons(polygons, net: StaticNetwork):
@@ -718,72 +713,123 @@ def _bandwidth(samples, weights, opt, rng):
     elif opt.bandwidth == "silverman":
         h = _silverman(samples, weights)
     else:
-        h = _lscv(samples, weights, rng, opt.lscv_max_samples, opt.backend)
+        h = _lscv(samples, weights, rng, opt.lscv_max_samples)
     return max(h, opt.min_bandwidth_m)
 
 
+def _support(meas: StaticMeasurements, prior: StaticPrior, opt: NBPOptions, rng):
+    """Support regions of the polygon proposal, their setup time per agent [s] and their
+    diagnostics (see :func:`run_nbp`)."""
+    if prior.polygons is not None:
+        return prior.polygons, prior.polygon_time_per_node_s, {"support": "prior"}
+    if opt.support == "poa":
+        res = poa(
+            meas.positions,
+            meas.ranges,
+            meas.is_anchor,
+            rng=rng,
+            n_edges=opt.poa_n_edges,
+            n_iterations=opt.poa_n_fs,
+            region=prior.region,
+        )
+        t = float(res.time_s.sum(axis=0).mean()) if meas.n_agents else 0.0
+        diag = {
+            "support": "poa",
+            "poa_area_m2": res.area_history,
+            "poa_time_per_node_s": t,
+            "poa_dropped": res.dropped,
+        }
+        return list(res.polygons), t, diag
+    if opt.support == "ellipse":
+        t0 = time.perf_counter()
+        ell = ellipse_outer_approximation(
+            meas.positions,
+            meas.ranges,
+            meas.is_anchor,
+            n_iterations=opt.poa_n_fs,
+            region=prior.region,
+        )
+        t = (time.perf_counter() - t0) / max(meas.n_agents, 1)
+        return ell.regions(), t, {"support": "ellipse", "ellipse_area_m2": ell.area_history}
+    raise ValidationError(
+        "polygons", None, "proposal='polygon' needs StaticPrior.polygons or a support option"
+    )
+
+
 def run_nbp(
-    ranges,
-    anchors,
-    anchor_positions,
+    measurements: StaticMeasurements,
+    prior: StaticPrior,
     rng: np.random.Generator,
     options: NBPOptions | None = None,
-    *,
-    region,
-    polygons=None,
-    error_model: RangeError | None = None,
-) -> NBPResult:
+) -> Result:
     """Localize the agents of a static network with NBP (POA-NBP §II-B, §IV-B).
 
     Parameters
     ----------
-    ranges : [N, N] float64
-        ``ranges[j, i] = ẑ_{i→j}`` [m], the range node ``j`` measured to node ``i``; NaN where
-        there is no link (:func:`~phyloc.localization.static.static_ranges.simulate_ranges`).
-    anchors : [N] bool or sequence of int
-        Anchor nodes (known positions); all other nodes are agents.
-    anchor_positions : [n_anchors, 2] or [N, 2] float64
-        Anchor positions [m] in ascending node order (or a full array of which only anchor rows
-        are read).
+    measurements : StaticMeasurements
+        Ranges ``ranges[j, i] = ẑ_{i→j}``, anchors and their positions, error model.
+    prior : StaticPrior
+        ``region`` (support of the uniform prior) and, for ``proposal="polygon"``, optional
+        precomputed support ``polygons`` (else ``options.support`` computes them). ``None``
+        entries and degenerate polygons (area 0) fall back to the uniform proposal over the
+        region.
     rng : numpy.random.Generator
+        Draws, in order: the support (``support="poa"`` without prior polygons: the anchor
+        polygon offsets), the initial beliefs, then per iteration and agent the messages,
+        bandwidth subsets, proposal samples and resampling.
     options : NBPOptions, optional
-    region : (xmin, ymin, xmax, ymax)
-        Deployment area [m]: support of the uniform prior.
-    polygons : sequence or dict, optional
-        One convex polygon per agent (sequence over agents — e.g.
-        ``polygons.poa(...).polygons`` — or over all nodes, or ``{node: polygon}``); used by
-        ``proposal="polygon"``. ``None`` entries and degenerate polygons (area 0: empty, a
-        point or a segment) fall back to the uniform proposal over the region.
-    error_model : ExponentialRangeError or GaussianRangeError, optional
-        Default: exponential, mean 0.38 m (§V-A).
 
     Returns
     -------
-    NBPResult
-        ``estimates [n_iter, n_agents, 2]`` (MMSE after each iteration), samples, weights, ESS,
-        ``converged_iteration``, ``time_per_node_s [n_iter, n_agents]``.
+    Result
+        ``estimates [n_iterations, n_agents, 2]``: the MMSE estimate (weighted mean) after
+        each iteration (iteration 1 first; the initial uniform belief is not included);
+        ``covariances [n_iterations, n_agents, 2, 2]``: the weighted sample covariance of
+        each agent's last update (of its initial belief while never updated); ``particles
+        [n_agents, N_S, 2]`` and ``log_weights [n_agents, N_S]``: the weighted samples of each
+        agent's last update (``-inf`` = zero weight); ``timing``: ``step_s`` the wall time of
+        each iteration, ``agent_s`` the mean time per agent update in it. ``diagnostics``:
+
+        ``ess`` [n_iterations, n_agents]
+            effective sample size of each update (0 where the agent was not updated);
+        ``agent_time_s`` [n_iterations, n_agents]
+            wall time of each agent's update [s];
+        ``converged_iteration`` int or None
+            :func:`~phyloc.localization.static.static_ranges.convergence_iteration`;
+        ``setup_time_per_node_s`` float
+            time per agent spent on the proposal support before the first iteration [s]
+            (POA, ellipses, or ``prior.polygon_time_per_node_s``; 0 without support) — part of
+            the time to convergence of POA-NBP Table I;
+        ``support`` str
+            ``"prior"``, ``"poa"``, ``"ellipse"`` or ``"none"``; with ``"poa"`` also
+            ``poa_area_m2`` [N_FS, n_agents], ``poa_time_per_node_s``, ``poa_dropped``
+            [k, 2] (dropped measurements ``(i, j)``); with ``"ellipse"`` ``ellipse_area_m2``.
 
     Examples
     --------
-    >>> from phyloc.localization.static.static_ranges import paper_static_scenario
-    >>> rng = np.random.default_rng(3)
-    >>> sc = paper_static_scenario(rng, n_agents=10)
-    >>> res = run_nbp(sc.ranges, sc.is_anchor, sc.anchor_positions, rng,
-    ...               NBPOptions(n_samples=100, n_iterations=3), region=sc.region)
-    >>> res.estimates.shape
-    (3, 10, 2)
+    >>> anchors = np.array([[0.0, 0.0], [20.0, 0.0], [0.0, 20.0], [20.0, 20.0]])
+    >>> z = np.full((5, 5), np.nan)  # node 4, an agent, measured its ranges to the anchors
+    >>> z[4, :4] = [13.2, 17.2, 11.6, 16.0]
+    >>> meas, prior = StaticMeasurements(z, [0, 1, 2, 3], anchors), StaticPrior((0, 0, 20, 20))
+    >>> res = run_nbp(meas, prior, np.random.default_rng(3),
+    ...               NBPOptions(n_samples=100, n_iterations=3))
+    >>> res.estimates.shape, res.particles.shape
+    ((3, 1, 2), (1, 100, 2))
     """
+    t_wall = time.perf_counter()
     opt = options if options is not None else NBPOptions()
     if not isinstance(opt, NBPOptions):
         raise ValidationError("options", type(opt).__name__, "must be NBPOptions")
-    if not isinstance(rng, np.random.Generator):
-        raise ValidationError("rng", rng, "a numpy.random.Generator is required")
-    net = check_static_network(ranges, anchors, anchor_positions)
-    reg = check_region(region)
-    model = check_error_model(error_model)
+    meas, prior = check_inputs(measurements, prior, rng)
+    net = meas.network
+    reg = prior.region
+    model = meas.error_model
+    diag: dict = {"support": "none"}
+    setup_s = 0.0
+    polygons = None
+    if opt.proposal == "polygon":
+        polygons, setup_s, diag = _support(meas, prior, opt, rng)
     polys = _check_polygons(polygons, net)
-    if opt.proposal == "polygon" and polygons is None:
-        raise ValidationError("polygons", None, "proposal='polygon' needs one polygon per agent")
 
     n_ag, ns = net.n_agents, opt.n_samples
     node_to_agent = {int(j): a for a, j in enumerate(net.agents)}
@@ -800,13 +846,17 @@ def run_nbp(
             B[a] = _uniform_region(ns, reg, rng)
     est = B.mean(axis=1)
     samples, weights = B.copy(), np.full((n_ag, ns), 1.0 / ns)
+    cov = np.array([_weighted_cov(B[a], weights[a])[1] for a in range(n_ag)]).reshape(n_ag, 2, 2)
 
     L = opt.n_iterations
     out_est = np.empty((L, n_ag, 2))
+    out_cov = np.empty((L, n_ag, 2, 2))
     out_t = np.zeros((L, n_ag))
+    step_t = np.zeros(L)
     out_ess = np.zeros((L, n_ag))
     n_done = L
     for it in range(L):
+        t_it = time.perf_counter()
         B_new, informed_new, est_new = B.copy(), informed.copy(), est.copy()
         for a in range(n_ag):
             t0 = time.perf_counter()
@@ -841,7 +891,6 @@ def run_nbp(
                     reg,
                     opt.uniform_fraction,
                     model,
-                    opt.backend,
                     polygon=polys[a],
                     previous=prev,
                     region_prior=opt.region_prior,
@@ -853,25 +902,45 @@ def run_nbp(
                     B_new[a] = prod.samples[idx]
                     informed_new[a] = True
                     samples[a], weights[a] = prod.samples, w
+                    cov[a] = _weighted_cov(prod.samples, w / w.sum())[1]
                     out_ess[it, a] = prod.ess
             out_t[it, a] = time.perf_counter() - t0
         B, informed, est = B_new, informed_new, est_new
         out_est[it] = est
+        out_cov[it] = cov
+        step_t[it] = time.perf_counter() - t_it
         if opt.stop_on_convergence and convergence_iteration(
             out_est[: it + 1], opt.convergence_tol_m, opt.convergence_rel
         ):
             n_done = it + 1
             break
-    out_est, out_t, out_ess = out_est[:n_done], out_t[:n_done], out_ess[:n_done]
-    return NBPResult(
-        estimates=out_est,
-        agents=net.agents,
+    out_est, out_cov, out_t, out_ess = (
+        out_est[:n_done],
+        out_cov[:n_done],
+        out_t[:n_done],
+        out_ess[:n_done],
+    )
+    diag.update(
+        ess=out_ess,
+        agent_time_s=out_t,
         converged_iteration=convergence_iteration(
             out_est, opt.convergence_tol_m, opt.convergence_rel
         ),
-        time_per_node_s=out_t,
+        setup_time_per_node_s=setup_s,
+    )
+    with np.errstate(divide="ignore"):
+        log_w = np.log(weights)
+    return Result(
+        estimates=out_est,
+        covariances=out_cov,
+        timing=Timing(
+            wall_s=time.perf_counter() - t_wall,
+            step_s=step_t[:n_done],
+            agent_s=out_t.mean(axis=1) if n_ag else np.zeros(n_done),
+            agent_iterations=n_done * n_ag,
+        ),
+        particles=samples,
+        log_weights=log_w,
+        diagnostics=diag,
         label=f"nbp.{opt.proposal}",
-        samples=samples,
-        weights=weights,
-        ess=out_ess,
     )

@@ -1,23 +1,25 @@
 """Polygon support outer-approximation (POA) for 2-D static networks.
 
 Mendrzik & Bauch, "Position-Constrained Stochastic Inference for Cooperative Indoor
-Localization" (POA paper). With non-negative ranging errors, eq. (11)
+Localization" ("POA-NBP"). With non-negative ranging errors, POA-NBP eq. (11)
 ``‖x_i − x_j‖ <= ẑ_{i→j}``, agent ``j`` lies in the disk of radius ``ẑ_{i→j}`` around an
-anchor ``i`` (eq. (15)) and in the polygon of a neighbour agent ``i`` grown by ``ẑ_{i→j}``.
-POA (Algorithm 1) keeps one convex polygon per agent that contains the agent with
-certainty, built from three operations:
+anchor ``i`` (POA-NBP eq. (15)) and in the polygon of a neighbour agent ``i`` grown by
+``ẑ_{i→j}``. POA (POA-NBP Algorithm 1) keeps one convex polygon per agent that contains the
+agent with certainty, built from three operations:
 
 * :func:`anchor_polygon` — the regular ``N_E``-gon circumscribing an anchor disk
-  (Algorithm 2, eqs. (15)–(17));
-* :func:`intersect` — Sutherland–Hodgman clipping (Algorithm 3, halfspaces of eq. (18));
+  (POA-NBP Algorithm 2, eqs. (15)–(17));
+* :func:`intersect` — Sutherland–Hodgman clipping (POA-NBP Algorithm 3, halfspaces of
+  POA-NBP eq. (18));
 * :func:`scale_polygon` — every supporting halfspace shifted outward by the range
-  (Algorithm 4, eqs. (18)–(20)); the result contains the Minkowski sum of the polygon and the
-  disk.
+  (POA-NBP Algorithm 4, eqs. (18)–(20)); the result contains the Minkowski sum of the
+  polygon and the disk.
 
-:func:`poa` runs Algorithm 1 over a whole network and :func:`ellipse_outer_approximation` is
-the ellipse baseline of the paper's Fig. 9. :class:`ConvexPolygon` carries the samplers of
-§IV-B: exact uniform sampling (eq. (21)) and the paper's rejection sampling from the bounding
-box with acceptance rate eq. (22).
+:func:`poa` runs POA-NBP Algorithm 1 over a whole network and
+:func:`ellipse_outer_approximation` is the ellipse baseline of POA-NBP Fig. 9 (its ellipses
+as proposal supports: :class:`EllipseRegion`). :class:`ConvexPolygon` carries the samplers of
+POA-NBP §IV-B: exact uniform sampling (POA-NBP eq. (21)) and the paper's rejection sampling
+from the bounding box with acceptance rate POA-NBP eq. (22).
 
 Conventions: positions in metres, arrays ``float64``; a polygon's vertices are ``(m, 2)``
 counter-clockwise (CCW); ``m = 0`` is the empty set, ``m = 1`` a point and ``m = 2`` a segment
@@ -25,6 +27,11 @@ counter-clockwise (CCW); ``m = 0`` is the empty set, ``m = 1`` a point and ``m =
 Computations keep points within ``1e-12 ×`` the coordinate scale outside a halfspace, so
 rounding never cuts off a feasible point. Numba kernels live in
 :mod:`phyloc.localization.static._polygon_kernels`.
+
+References
+----------
+.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+   Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations
@@ -192,7 +199,7 @@ class ConvexPolygon:
     @property
     def area(self) -> float:
         """Area [m²] by the shoelace formula (0 for empty, point and segment); ``A_p`` of
-        POA eq. (21)."""
+        POA-NBP eq. (21)."""
         if self.vertices.shape[0] < 3:
             return 0.0
         return max(_signed_area(self.vertices), 0.0)
@@ -218,7 +225,7 @@ class ConvexPolygon:
 
     @property
     def bounding_box(self) -> tuple[float, float, float, float]:
-        """``(xmin, ymin, xmax, ymax)`` [m], the rectangle of the rejection sampler (§IV-B).
+        """``(xmin, ymin, xmax, ymax)`` [m], the rectangle of the rejection sampler (POA-NBP §IV-B).
 
         Raises :class:`~phyloc.errors.ValidationError` for the empty polygon.
         """
@@ -229,7 +236,7 @@ class ConvexPolygon:
         return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
 
     def halfspaces(self) -> tuple[np.ndarray, np.ndarray]:
-        """Halfspace form ``(A [k, 2], c [k])``: ``x`` is inside ⇔ ``A x <= c`` (POA eq. (18)).
+        """Halfspace form ``(A [k, 2], c [k])``: ``x`` is inside ⇔ ``A x <= c`` (POA-NBP eq. (18)).
 
         Row ``m`` belongs to edge ``v_m → v_{m+1}``: unit outward normal
         ``a_m ⊥ (v_{m+1} − v_m)`` and ``c_m = a_m·v_m``. A segment gives its two sides and
@@ -275,7 +282,7 @@ class ConvexPolygon:
         return K.contains_kernel(A, c, p, t)
 
     def sample_uniform(self, n, rng) -> np.ndarray:
-        """``n`` points uniform in the polygon — the proposal ``q`` of POA eq. (21), exactly.
+        """``n`` points uniform in the polygon — the proposal ``q`` of POA-NBP eq. (21), exactly.
 
         Triangle fan from vertex 0: a triangle is chosen with probability proportional to its
         area, then a point uniform in it (two uniforms folded by reflection). A segment is
@@ -292,10 +299,10 @@ class ConvexPolygon:
         return K.fan_sample_kernel(self.vertices, rng.random((n, 3)))
 
     def sample_rejection(self, n, rng, *, max_draws: int = 100_000_000):
-        """``n`` points uniform in the polygon by rejection from its bounding box (§IV-B).
+        """``n`` points uniform in the polygon by rejection from its bounding box (POA-NBP §IV-B).
 
         Candidates are drawn uniformly in :attr:`bounding_box` (x and y independently) and
-        accepted when inside; the expected acceptance rate is ``R_a = A_p/A_r`` (eq. (22)).
+        accepted when inside; the expected acceptance rate is ``R_a = A_p/A_r`` (POA-NBP eq. (22)).
 
         Returns
         -------
@@ -381,10 +388,10 @@ def _check_convex(w: np.ndarray, tol: float) -> None:
 def anchor_polygon(center, range_m, n_edges: int = 16, offset_rad: float = 0.0) -> ConvexPolygon:
     """Regular ``N_E``-gon circumscribing the disk of radius ``z`` around an anchor.
 
-    POA Algorithm 2, eqs. (15)–(17): vertices at angles ``α_0 + mα``, ``α = 2π/N_E``,
-    ``m = 0 … N_E − 1``, radius ``r = z / cos(α/2)`` (eq. (16)), shifted by the anchor
-    position (eq. (17)). Every edge touches the circle, so the polygon contains the feasible
-    disk ``B = {x : ‖x − x*‖ <= z}`` of eq. (15); its area is ``N_E z² tan(π/N_E)``.
+    POA-NBP Algorithm 2, eqs. (15)–(17): vertices at angles ``α_0 + mα``, ``α = 2π/N_E``,
+    ``m = 0 … N_E − 1``, radius ``r = z / cos(α/2)`` (POA-NBP eq. (16)), shifted by the anchor
+    position (POA-NBP eq. (17)). Every edge touches the circle, so the polygon contains the feasible
+    disk ``B = {x : ‖x − x*‖ <= z}`` of POA-NBP eq. (15); its area is ``N_E z² tan(π/N_E)``.
 
     Parameters
     ----------
@@ -393,7 +400,7 @@ def anchor_polygon(center, range_m, n_edges: int = 16, offset_rad: float = 0.0) 
     range_m : float
         Range estimate ``ẑ_{i→j} >= 0`` [m]; 0 gives the point polygon.
     n_edges : int
-        ``N_E >= 3`` (the paper uses 16, §V-B).
+        ``N_E >= 3`` (POA-NBP uses 16, §V-B).
     offset_rad : float
         Angular offset ``α_0`` [rad] (the paper draws it at random).
 
@@ -430,9 +437,9 @@ def _anchor_halfspaces(x: np.ndarray, z: float, n_edges: int, offset: float):
 
 
 def intersect(P: ConvexPolygon, Q: ConvexPolygon) -> ConvexPolygon:
-    """Intersection of two convex polygons by Sutherland–Hodgman (POA Algorithm 3).
+    """Intersection of two convex polygons by Sutherland–Hodgman (POA-NBP Algorithm 3).
 
-    The subject ``P`` is clipped successively by each halfspace of ``Q`` (eq. (18)); the
+    The subject ``P`` is clipped successively by each halfspace of ``Q`` (POA-NBP eq. (18)); the
     result is convex and CCW, has at most ``m_P + m_Q`` vertices, and is empty when the
     polygons are disjoint. Points within ``1e-12 ×`` the coordinate scale of a halfspace are
     kept, so touching polygons give a point or a segment rather than the empty set.
@@ -467,8 +474,8 @@ def intersect(P: ConvexPolygon, Q: ConvexPolygon) -> ConvexPolygon:
 def scale_polygon(P: ConvexPolygon, range_m, *, max_turn_rad=None) -> ConvexPolygon:
     """Grow a polygon by a range: every supporting halfspace shifted outward by ``z``.
 
-    POA Algorithm 4, eqs. (18)–(20): halfspace ``a_m·x <= c_m`` becomes
-    ``a_m·x <= c_m + z`` (eq. (20), ``v̄ = z a_m + v``, eq. (19)), and vertex ``m`` is the
+    POA-NBP Algorithm 4, eqs. (18)–(20): halfspace ``a_m·x <= c_m`` becomes
+    ``a_m·x <= c_m + z`` (POA-NBP eqs. (20), (19): ``v̄ = z a_m + v``), and vertex ``m`` is the
     intersection of the shifted lines ``m − 1`` and ``m``, evaluated in the closed form
     ``v_m + z (a_{m−1} + a_m)/(1 + a_{m−1}·a_m)`` (exact, and well conditioned for nearly
     parallel edges). Since ``h_{P⊕zB}(a) = h_P(a) + z``, the result contains the Minkowski sum
@@ -482,7 +489,7 @@ def scale_polygon(P: ConvexPolygon, range_m, *, max_turn_rad=None) -> ConvexPoly
         Range estimate ``ẑ_{i→j} >= 0`` [m].
     max_turn_rad : float or None
         Largest angle between adjacent outward normals left unsplit. ``None`` (default) is
-        the paper's Algorithm 4: only the polygon's own edges are shifted, except that a corner
+        POA-NBP Algorithm 4: only the polygon's own edges are shifted, except that a corner
         whose normals turn by more than ``π − 10⁻³`` (a miter longer than ~2000 z, or none at
         all for the ends of a segment) gets extra support lines (bevels) through the vertex. A
         value ``θ`` splits every corner turning by more than ``θ`` into equal turns
@@ -525,7 +532,7 @@ class POAResult:
         no ``region`` and no bounded neighbour). Never empty.
     area_history : [n_iterations, n_agents], float
         Polygon area [m²] after iteration ``l = 1 … N_FS`` (row ``l − 1``); ``inf`` while
-        unbounded. The curve of the paper's Fig. 9 is its mean over agents.
+        unbounded. The curve of POA-NBP Fig. 9 is its mean over agents.
     time_s : [n_iterations, n_agents], float
         Wall time [s] spent on each agent in each iteration (its support halfspaces, scaling
         and clipping).
@@ -555,7 +562,7 @@ class POAResult:
 
     def mean_area(self) -> np.ndarray:
         """Mean area [m²] per iteration over the agents bounded from iteration 1 on
-        (a fixed population, so the curve is comparable across iterations; Fig. 9).
+        (a fixed population, so the curve is comparable across iterations; POA-NBP Fig. 9).
 
         Returns ``inf`` per iteration when no agent is bounded from the start.
         """
@@ -665,16 +672,17 @@ def poa(
     region=None,
     max_turn_rad=None,
 ) -> POAResult:
-    """Polygon support outer-approximation of a whole static 2-D network (POA Algorithm 1).
+    """Polygon support outer-approximation of a whole static 2-D network (POA-NBP Algorithm 1).
 
-    Iteration ``l = 1`` (Algorithm 1, lines 4–11): agent ``j`` starts from ``region`` (the
-    prior support, if given) and intersects it with the anchor polygons (Algorithm 2) of its
-    anchor neighbours, each with its own angular offset ``α_0 ~ U[0, 2π/N_E)`` drawn from
-    ``rng``. Iterations ``l = 2 … N_FS`` (lines 12–20), Jacobi schedule: every agent
-    intersects its current polygon with the polygons of its agent neighbours from iteration
-    ``l − 1`` scaled by the range (Algorithm 4), by Sutherland–Hodgman (Algorithm 3). Keeping
-    the agent's own polygon in the intersection keeps its anchor constraints and makes the
-    area non-increasing. With errors ``ε >= 0`` (eq. (11)) every polygon contains its agent.
+    Iteration ``l = 1`` (POA-NBP Algorithm 1, lines 4–11): agent ``j`` starts from ``region``
+    (the prior support, if given) and intersects it with the anchor polygons (POA-NBP
+    Algorithm 2) of its anchor neighbours, each with its own angular offset
+    ``α_0 ~ U[0, 2π/N_E)`` drawn from ``rng``. Iterations ``l = 2 … N_FS`` (lines 12–20), Jacobi
+    schedule: every agent intersects its current polygon with the polygons of its agent
+    neighbours from iteration ``l − 1`` scaled by the range (POA-NBP Algorithm 4), by
+    Sutherland–Hodgman (POA-NBP Algorithm 3). Keeping the agent's own polygon in the
+    intersection keeps its anchor constraints and makes the area non-increasing. With errors
+    ``ε >= 0`` (POA-NBP eq. (11)) every polygon contains its agent.
 
     Parameters
     ----------
@@ -694,11 +702,11 @@ def poa(
         ``N_FS >= 1``; iteration 1 is the anchor step (paper: ``N_FS = 2``).
     region : ConvexPolygon or (xmin, ymin, xmax, ymax) or None
         Deployment area, the support of the uniform prior (e.g. the 100 m × 100 m square of
-        §V-A); every agent's polygon starts as ``region``. ``None``: agents without anchor
+        POA-NBP §V-A); every agent's polygon starts as ``region``. ``None``: agents without anchor
         neighbours are unbounded (``None`` polygon, area ``inf``) until a bounded neighbour
         constrains them; unbounded neighbours are skipped.
     max_turn_rad : float or None
-        Corner splitting of :func:`scale_polygon` (``None`` = the paper's Algorithm 4).
+        Corner splitting of :func:`scale_polygon` (``None`` = POA-NBP Algorithm 4).
 
     Returns
     -------
@@ -711,7 +719,7 @@ def poa(
 
     * a negative range estimate ``ẑ < 0`` (no disk has negative radius), and
     * a constraint whose polygon does not meet the agent's current polygon: the intersection
-      would be empty, so the measurements used so far cannot all satisfy eq. (11).
+      would be empty, so the measurements used so far cannot all satisfy POA-NBP eq. (11).
 
     Such a measurement is dropped (the polygon before it is kept, never an empty one), for
     this and all later iterations, and recorded in :attr:`POAResult.dropped`. Constraints are
@@ -759,7 +767,7 @@ def poa(
     dropped: list[tuple[int, int, int]] = []
     bad = set()
 
-    # l = 1: region ∩ anchor polygons (Algorithm 1 lines 4–11, Algorithm 2)
+    # l = 1: region ∩ anchor polygons (POA-NBP Algorithm 1 lines 4–11, Algorithm 2)
     k = 0
     for a, j in enumerate(agents):
         t0 = time.perf_counter()
@@ -792,7 +800,7 @@ def poa(
         times[0, a] += time.perf_counter() - t0
         areas[0, a] = _area(polys[a])
 
-    # l = 2 … N_FS: scaled neighbour polygons (Algorithm 1 lines 12–20, Algorithm 4)
+    # l = 2 … N_FS: scaled neighbour polygons (POA-NBP Algorithm 1 lines 12–20, Algorithm 4)
     for it in range(1, n_iter):
         support = [None] * agents.size
         for a in range(agents.size):
@@ -848,7 +856,53 @@ def _area(w: np.ndarray | None) -> float:
     return max(_signed_area(w), 0.0) if w.shape[0] >= 3 else 0.0
 
 
-# -- the ellipse baseline (Fig. 9) --------------------------------------------------------------
+# -- the ellipse baseline (POA-NBP Fig. 9) ------------------------------------------------------
+class EllipseRegion:
+    """An ellipse ``{x : (x − c)ᵀ Σ⁻¹ (x − c) <= 1}`` as a support region of the polygon
+    proposal (``area``, ``contains``, ``sample_uniform``; the NBP of POA-NBP eq. (21) with an
+    ellipse in place of the polygon: the 'NBP ell.' baseline).
+
+    Parameters
+    ----------
+    center : [2] float64
+        ``c`` [m].
+    shape : [2, 2] float64
+        ``Σ`` [m²], symmetric positive semi-definite; a singular ``Σ`` has area 0 (no density).
+
+    Examples
+    --------
+    >>> E = EllipseRegion([0.0, 0.0], [[4.0, 0.0], [0.0, 1.0]])
+    >>> round(E.area, 6), E.contains([[1.9, 0.0], [0.0, 1.1]]).tolist()
+    (6.283185, [True, False])
+    >>> bool(E.contains(E.sample_uniform(100, np.random.default_rng(0))).all())
+    True
+    """
+
+    def __init__(self, center, shape):
+        self.center = np.asarray(center, dtype=np.float64)
+        self.shape = np.asarray(shape, dtype=np.float64)
+        det = float(np.linalg.det(self.shape))
+        self.area = math.pi * math.sqrt(det) if det > 0 else 0.0
+        if self.area > 0:
+            self._L = np.linalg.cholesky(self.shape)
+            self._inv = np.linalg.inv(self.shape)
+
+    def contains(self, points, tol=1e-9) -> np.ndarray:
+        """Whether each of ``points [n, 2]`` lies in the ellipse (``≤ 1 + tol``)."""
+        d = np.asarray(points, dtype=np.float64).reshape(-1, 2) - self.center
+        if self.area == 0:
+            return np.zeros(d.shape[0], bool)
+        return np.einsum("ni,ij,nj->n", d, self._inv, d) <= 1.0 + tol
+
+    def sample_uniform(self, n, rng) -> np.ndarray:
+        """``n`` points uniform in the ellipse: ``c + L u``, ``u`` uniform in the unit disk
+        (``√U`` radius, uniform angle; draws ``rng.uniform(size=n)`` twice), ``Σ = L Lᵀ``."""
+        r = np.sqrt(rng.uniform(size=n))
+        t = rng.uniform(0.0, 2.0 * np.pi, size=n)
+        u = np.stack([r * np.cos(t), r * np.sin(t)], axis=1)
+        return self.center + u @ self._L.T
+
+
 @dataclass(frozen=True, eq=False)
 class EllipseResult:
     """Output of :func:`ellipse_outer_approximation`.
@@ -899,6 +953,14 @@ class EllipseResult:
         d = p - self.centers[a]
         S = self.shapes[a] + max(t * t, 1e-300) * np.eye(2)
         return np.einsum("ij,jk,ik->i", d, np.linalg.inv(S), d) <= 1.0
+
+    def regions(self) -> list:
+        """One :class:`EllipseRegion` per agent (``None`` where unbounded): the supports of
+        the 'NBP ell.' proposal."""
+        return [
+            EllipseRegion(c, sh) if b else None
+            for c, sh, b in zip(self.centers, self.shapes, self.bounded, strict=True)
+        ]
 
     def mean_area(self) -> np.ndarray:
         """Mean area per iteration over the agents bounded from iteration 1 on (see
@@ -956,7 +1018,7 @@ def ellipse_outer_approximation(
     region=None,
     n_directions: int = 64,
 ) -> EllipseResult:
-    """Ellipse outer-approximation of the feasible sets: the baseline of POA Fig. 9.
+    """Ellipse outer-approximation of the feasible sets: the baseline of POA-NBP Fig. 9.
 
     The paper compares POA with the ellipses of "distributed bounding of feasible sets"
     (its refs. [8], [10], [42]), which agents exchange instead of polygons. This function keeps

@@ -1,21 +1,22 @@
-"""Range measurements of static 2-D networks and their error models (POA-NBP paper §II-A).
+"""Range measurements of static 2-D networks, their error models, and the family's inputs.
 
 Measurement model (POA-NBP eq. (1)): node ``j`` estimates its distance to a neighbour ``i`` as
 
 .. math::  \\hat z_{i\\to j} = \\lVert x_i - x_j \\rVert + \\epsilon_{i\\to j},
 
-with one of two error models:
+with one of two error models (measurement models: they sample errors and evaluate the
+likelihood; the scenario simulators that draw the truth live in
+:mod:`phyloc.evaluation.static_scenarios`):
 
 - :class:`ExponentialRangeError` — one-sided exponential errors ``ε ~ Exp(λ)`` of mean ``1/λ``
-  (POA-NBP eq. (2); default mean 0.38 m, §V-A). Its likelihood is zero for ``z < d``.
+  (POA-NBP eq. (2); default mean 0.38 m, POA-NBP §V-A). Its likelihood is zero for ``z < d``.
 - :class:`GaussianRangeError` — ``ε ~ N(0, σ²)``.
 
 **Range matrix convention** (as in :mod:`phyloc.localization.tracking.range_models`): a dense
 ``ranges[N, N]`` float64 array, ``ranges[j, i] = ẑ_{i→j}`` is the range node ``j`` *measured*
 to node ``i`` (row = measuring node), NaN where there is no link and on the diagonal. Both nodes
-of a pair within the communication range ``r_com`` measure, each with its own independent error
-(``ranges[j, i] ≠ ranges[i, j]``, the paper's ``ẑ_{i→j}`` and ``ẑ_{j→i}``); ``symmetric=True``
-draws one error per pair instead.
+of a linked pair measure, each with its own independent error (``ranges[j, i] ≠ ranges[i, j]``,
+POA-NBP's ``ẑ_{i→j}`` and ``ẑ_{j→i}``).
 
 **Log-likelihoods never return -inf.** The exponential model's zero likelihood for ``z < d``
 (infeasible distance) is replaced by the finite value
@@ -26,8 +27,17 @@ infeasible one by a factor ``> e^{100}`` (unless its own excess error is beyond 
 smoothing) still ranks them by how much they violate. Every log-likelihood is finally clipped
 at :data:`LOGLIK_FLOOR` so that extreme inputs (σ → 0) stay finite.
 
-Also here: the result type shared by the static localizers (:class:`StaticResult`), their input
-checks (:func:`check_static_network`) and the §V deployment (:func:`paper_static_scenario`).
+**The family's inputs.** Every static method is ``run(measurements, prior, rng, options) ->
+Result`` with :class:`StaticMeasurements` (the range matrix, which nodes are anchors, the anchor
+positions and the error model — never the agents' true positions) and :class:`StaticPrior`
+(the deployment region, optional starting estimates and optional precomputed support polygons).
+Also here: the checked network view the localizers work on (:class:`StaticNetwork`) and the
+truth-free convergence rule (:func:`convergence_iteration`).
+
+References
+----------
+.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+   Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations
@@ -134,7 +144,7 @@ class ExponentialRangeError:
     Parameters
     ----------
     mean_m : float
-        ``1/λ`` [m], > 0. Default 0.38 m (§V-A).
+        ``1/λ`` [m], > 0. Default 0.38 m (POA-NBP §V-A).
 
     Examples
     --------
@@ -226,153 +236,16 @@ def check_error_model(model) -> RangeError:
 
 
 # ---------------------------------------------------------------------------------------------
-# Simulation
+# Inputs and results shared by the static localizers (NBP, Gaussian BP, WLS)
 # ---------------------------------------------------------------------------------------------
-def true_distances(positions) -> np.ndarray:
-    """``[N, N]`` Euclidean distances of ``positions [N, 2]`` [m]."""
-    p = v.finite_array("positions", positions, ndim=2)
-    return np.sqrt(((p[:, None, :] - p[None, :, :]) ** 2).sum(axis=-1))
-
-
-def simulate_ranges(
-    positions,
-    comm_range_m: float,
-    error_model: RangeError | None,
-    rng: np.random.Generator,
-    *,
-    symmetric: bool = False,
-    anchors=None,
-) -> np.ndarray:
-    """Simulate the dense range matrix of a static network (POA-NBP eq. (1)).
-
-    Parameters
-    ----------
-    positions : [N, 2] float64
-        True node positions [m].
-    comm_range_m : float
-        ``r_com`` [m], > 0 (``inf``: fully connected). Pairs with ``‖x_i − x_j‖ <= r_com`` are
-        linked (POA-NBP §II-A1).
-    error_model : ExponentialRangeError or GaussianRangeError or None
-        ``None``: exponential, mean 0.38 m.
-    rng : numpy.random.Generator
-    symmetric : bool
-        ``False`` (paper): ``ẑ_{i→j}`` and ``ẑ_{j→i}`` have independent errors. ``True``: one
-        error per pair, ``ranges[i, j] == ranges[j, i]``.
-    anchors : [N] bool or index list, optional
-        Anchor–anchor pairs carry no measurement (NaN) when given.
-
-    Returns
-    -------
-    ranges : [N, N] float64
-        ``ranges[j, i] = ẑ_{i→j}`` [m], measured by node ``j``; NaN off-link and on the
-        diagonal.
+def anchor_mask(anchors, n: int) -> np.ndarray:
+    """``[n]`` bool anchor mask from a bool mask or a list of distinct node indices.
 
     Examples
     --------
-    >>> rng = np.random.default_rng(1)
-    >>> z = simulate_ranges([[0, 0], [3, 4], [50, 0]], 20.0, None, rng)
-    >>> bool(z[0, 1] >= 5.0), bool(np.isnan(z[0, 2]))
-    (True, True)
+    >>> anchor_mask([0, 2], 4).tolist()
+    [True, False, True, False]
     """
-    d = true_distances(positions)
-    n = d.shape[0]
-    r = float(comm_range_m)
-    if not (r > 0):  # NaN-safe, inf allowed
-        raise ValidationError("comm_range_m", comm_range_m, "must be > 0 (inf: fully connected)")
-    model = check_error_model(error_model)
-    rng = _rng(rng)
-    linked = d <= r
-    np.fill_diagonal(linked, False)
-    if anchors is not None:
-        is_anchor = _anchor_mask(anchors, n)
-        linked &= ~(is_anchor[:, None] & is_anchor[None, :])
-    e = model.sample((n, n), rng)
-    if symmetric:
-        e = np.triu(e, 1)
-        e = e + e.T
-    return np.where(linked, d + e, np.nan)
-
-
-#: The 13 anchors of the §V setup as fractions of the side: a 3×3 grid at the cell centres plus
-#: a 2×2 grid between them (the paper takes the topology of [3] without listing coordinates;
-#: this regular layout is our assumption).
-PAPER_ANCHOR_UNITS = np.array(
-    [[(i + 0.5) / 3, (k + 0.5) / 3] for k in range(3) for i in range(3)]
-    + [[(i + 1) / 3, (k + 1) / 3] for k in range(2) for i in range(2)]
-)
-
-
-@dataclass(frozen=True, eq=False)
-class StaticScenario:
-    """One static network with simulated ranges.
-
-    Attributes
-    ----------
-    positions : [N, 2] float64
-        True positions [m]; agents first, anchors last.
-    is_anchor : [N] bool
-    ranges : [N, N] float64
-        ``ranges[j, i] = ẑ_{i→j}`` (see :func:`simulate_ranges`).
-    region : (xmin, ymin, xmax, ymax)
-    error_model : ExponentialRangeError or GaussianRangeError
-    comm_range_m : float
-    """
-
-    positions: np.ndarray
-    is_anchor: np.ndarray
-    ranges: np.ndarray
-    region: tuple[float, float, float, float]
-    error_model: RangeError
-    comm_range_m: float
-
-    @property
-    def agents(self) -> np.ndarray:
-        """Agent node indices (ascending)."""
-        return np.flatnonzero(~self.is_anchor)
-
-    @property
-    def anchor_positions(self) -> np.ndarray:
-        """``[n_anchors, 2]`` anchor positions in ascending node order."""
-        return self.positions[self.is_anchor]
-
-    @property
-    def agent_positions(self) -> np.ndarray:
-        """``[n_agents, 2]`` true agent positions in ascending node order."""
-        return self.positions[~self.is_anchor]
-
-
-def paper_static_scenario(
-    rng: np.random.Generator,
-    *,
-    n_agents: int = 100,
-    side_m: float = 100.0,
-    comm_range_m: float = 20.0,
-    error_model: RangeError | None = None,
-    anchor_units=None,
-    symmetric: bool = False,
-) -> StaticScenario:
-    """The POA-NBP §V-A setup: ``n_agents`` uniform agents and 13 fixed anchors in a
-    ``side × side`` square, ``r_com = 20`` m, exponential errors of mean 0.38 m.
-
-    ``anchor_units`` ([n_anchors, 2] in [0, 1]) overrides :data:`PAPER_ANCHOR_UNITS`.
-    """
-    rng = _rng(rng)
-    n_ag = v.integer("n_agents", n_agents, minimum=0)
-    side = v.positive("side_m", side_m)
-    units = PAPER_ANCHOR_UNITS if anchor_units is None else anchor_units
-    units = v.finite_array("anchor_units", units, ndim=2)
-    agents = rng.uniform(0.0, side, size=(n_ag, 2))
-    pos = np.vstack([agents, units * side])
-    is_anchor = np.r_[np.zeros(n_ag, bool), np.ones(units.shape[0], bool)]
-    model = check_error_model(error_model)
-    z = simulate_ranges(pos, comm_range_m, model, rng, symmetric=symmetric, anchors=is_anchor)
-    return StaticScenario(pos, is_anchor, z, (0.0, 0.0, side, side), model, float(comm_range_m))
-
-
-# ---------------------------------------------------------------------------------------------
-# Inputs and results shared by the static localizers (NBP, Gaussian BP, WLS)
-# ---------------------------------------------------------------------------------------------
-def _anchor_mask(anchors, n: int) -> np.ndarray:
     a = np.asarray(anchors)
     if a.dtype == bool:
         if a.shape != (n,):
@@ -433,7 +306,7 @@ class StaticNetwork:
 
         ``"own"``: the ranges ``node`` measured, ``ẑ_{i→node} = ranges[node, i]`` (distributed
         processing, one factor per neighbour). ``"both"``: also the ranges the neighbours
-        measured to ``node``, ``ranges[i, node]`` (both factors of eq. (3) for every pair).
+        measured to ``node``, ``ranges[i, node]`` (both factors of POA-NBP eq. (3) for every pair).
         """
         out = [
             (int(i), float(self.ranges[node, i]))
@@ -464,7 +337,7 @@ def check_static_network(ranges, anchors, anchor_positions) -> StaticNetwork:
     np.fill_diagonal(z, np.nan)
     if np.any(np.isinf(z)):
         raise ValidationError("ranges", "inf", "entries must be finite or NaN (no link)")
-    is_anchor = _anchor_mask(anchors, n)
+    is_anchor = anchor_mask(anchors, n)
     ap = np.asarray(anchor_positions, dtype=np.float64)
     n_anc = int(is_anchor.sum())
     if ap.ndim == 2 and ap.shape == (n, 2) and n != n_anc:
@@ -491,7 +364,7 @@ def convergence_iteration(estimates: np.ndarray, tol_m: float, rel: float = 0.0)
     converged at the first ``l`` with ``c_l < tol_m`` or, when ``rel > 0``, with
     ``c_l > (1 − rel)·c_{l−1}`` (the change no longer shrinks by the fraction ``rel``: the
     Monte Carlo noise floor of a particle method). A truth-free version of the paper's
-    criterion (§V, footnote 5: the average localization error no longer changes notably).
+    criterion (POA-NBP §V, footnote 5: the average localization error no longer changes notably).
     """
     if estimates.shape[0] < 2 or estimates.shape[1] == 0:
         return None
@@ -503,55 +376,128 @@ def convergence_iteration(estimates: np.ndarray, tol_m: float, rel: float = 0.0)
     return int(idx[0]) + 2 if idx.size else None
 
 
+# ---------------------------------------------------------------------------------------------
+# The family's measurements and prior
+# ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
-class StaticResult:
-    """Per-iteration estimates of a static localizer.
+class StaticMeasurements:
+    """What a static localizer is given: ranges, anchors and the error model — no truth.
 
-    Attributes
+    Parameters
     ----------
-    estimates : [n_iter, n_agents, 2] float64
-        Position estimates after every iteration [m] (NBP: MMSE, the weighted mean; Gaussian
-        BP: belief mean; WLS: Gauss–Newton iterate).
-    agents : [n_agents] int64
-        Node index of each agent.
-    converged_iteration : int or None
-        1-based iteration of convergence (:func:`convergence_iteration`), None if not reached.
-    time_per_node_s : [n_iter, n_agents] float64
-        Wall time of each agent's update per iteration [s] (centralized WLS: the joint time
-        divided by the number of agents).
-    covariances : [n_iter, n_agents, 2, 2] float64 or None
-        Belief covariances where the method has them.
-    label : str
+    ranges : [N, N] float64
+        ``ranges[j, i] = ẑ_{i→j}`` [m], the range node ``j`` measured to node ``i``; NaN where
+        there is no link. The diagonal and anchor–anchor entries are set to NaN (unused).
+    is_anchor : [N] bool or sequence of int
+        Anchor mask or anchor node indices (stored as the mask); every other node is an agent.
+    anchor_positions : [n_anchors, 2] or [N, 2] float64
+        Known anchor positions [m] in ascending node order (of an ``[N, 2]`` array only the
+        anchor rows are read and kept, so agent rows may hold anything, e.g. NaN).
+    error_model : ExponentialRangeError or GaussianRangeError, optional
+        The ranging error model (POA-NBP eq. (2)); default exponential, mean 0.38 m.
+
+    Examples
+    --------
+    >>> z = np.array([[np.nan, 5.1, 5.2], [5.0, np.nan, np.nan], [5.3, np.nan, np.nan]])
+    >>> m = StaticMeasurements(z, [1, 2], [[3.0, 4.0], [-3.0, 4.0]])
+    >>> m.n_agents, m.agent_nodes.tolist(), m.is_anchor.tolist()
+    (1, [0], [False, True, True])
     """
 
-    estimates: np.ndarray
-    agents: np.ndarray
-    converged_iteration: int | None
-    time_per_node_s: np.ndarray
-    covariances: np.ndarray | None = None
-    label: str = ""
+    ranges: np.ndarray
+    is_anchor: np.ndarray
+    anchor_positions: np.ndarray
+    error_model: RangeError | None = None
+
+    def __post_init__(self):
+        net = check_static_network(self.ranges, self.is_anchor, self.anchor_positions)
+        for a in (net.ranges, net.is_anchor):
+            a.flags.writeable = False
+        anchors = net.positions[net.is_anchor]
+        anchors.flags.writeable = False
+        object.__setattr__(self, "ranges", net.ranges)
+        object.__setattr__(self, "is_anchor", net.is_anchor)
+        object.__setattr__(self, "anchor_positions", anchors)
+        object.__setattr__(self, "error_model", check_error_model(self.error_model))
+        object.__setattr__(self, "_net", net)
 
     @property
-    def n_iterations(self) -> int:
-        return self.estimates.shape[0]
+    def n_nodes(self) -> int:
+        """Number of nodes ``N`` (agents and anchors)."""
+        return int(self.ranges.shape[0])
 
     @property
-    def final(self) -> np.ndarray:
-        """``[n_agents, 2]`` estimates after the last iteration."""
-        return self.estimates[-1]
+    def agent_nodes(self) -> np.ndarray:
+        """``[n_agents]`` int64 node index of each agent (ascending); result row ``a`` is node
+        ``agent_nodes[a]``."""
+        return self._net.agents
 
-    def errors(self, true_positions) -> np.ndarray:
-        """``[n_iter, n_agents]`` localization errors ``‖x̂ − x‖`` [m].
+    @property
+    def n_agents(self) -> int:
+        """Number of agents (nodes with unknown position)."""
+        return int(self._net.agents.size)
 
-        ``true_positions``: ``[n_agents, 2]`` or ``[N, 2]`` (all nodes; agent rows are used).
-        """
-        t = np.asarray(true_positions, dtype=np.float64)
-        if t.shape[0] != self.agents.size:
-            t = t[self.agents]
-        return np.linalg.norm(self.estimates - t[None], axis=-1)
+    @property
+    def positions(self) -> np.ndarray:
+        """``[N, 2]`` known positions: anchor rows hold them, agent rows are NaN."""
+        return self._net.positions
 
-    def time_to_convergence_per_node_s(self) -> float:
-        """Mean over agents of the summed update time up to convergence (all iterations if
-        not converged): the paper's ``t_conv`` (Table I)."""
-        n = self.converged_iteration or self.n_iterations
-        return float(self.time_per_node_s[:n].sum(axis=0).mean()) if self.agents.size else 0.0
+    @property
+    def network(self) -> StaticNetwork:
+        """The checked network view of the localizers."""
+        return self._net
+
+
+@dataclass(frozen=True, eq=False)
+class StaticPrior:
+    """Prior knowledge of a static localizer (no truth).
+
+    Parameters
+    ----------
+    region : (xmin, ymin, xmax, ymax)
+        Deployment area [m]: the support of the uniform prior of every agent (POA-NBP §III-B,
+        §V-A), the start of the polygon outer-approximation and the box iterates are clipped to.
+    initial : [n_agents, 2] float64, optional
+        Starting estimates of local methods (Gaussian BP, WLS); ``None``: the method's ``start``
+        option decides.
+    polygons : sequence or dict, optional
+        Precomputed support regions of the polygon proposal (POA-NBP eq. (21)): one object per
+        agent (or per node, or ``{node: polygon}``) with ``.area``, ``.contains(points)`` and
+        ``.sample_uniform(n, rng)``, e.g. the polygons of
+        :func:`~phyloc.localization.static.polygons.poa`. When given, NBP uses them instead of
+        computing its own support (``NBPOptions.support``).
+    polygon_time_per_node_s : float
+        Wall time per agent it took to compute ``polygons`` [s] (reported as the setup time).
+
+    Examples
+    --------
+    >>> StaticPrior((0, 0, 100, 100)).region
+    (0.0, 0.0, 100.0, 100.0)
+    """
+
+    region: tuple
+    initial: np.ndarray | None = None
+    polygons: object = None
+    polygon_time_per_node_s: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "region", check_region(self.region))
+        if self.initial is not None:
+            object.__setattr__(self, "initial", v.finite_array("initial", self.initial, ndim=2))
+        t = v.positive("polygon_time_per_node_s", self.polygon_time_per_node_s, allow_zero=True)
+        object.__setattr__(self, "polygon_time_per_node_s", t)
+
+
+def check_inputs(measurements, prior, rng=None, *, need_rng: bool = True):
+    """Check the arguments of a static method's ``run``; returns ``(measurements, prior)``."""
+    if not isinstance(measurements, StaticMeasurements):
+        raise ValidationError(
+            "measurements", type(measurements).__name__, "must be StaticMeasurements"
+        )
+    if not isinstance(prior, StaticPrior):
+        raise ValidationError(
+            "prior", type(prior).__name__, "must be a StaticPrior (it gives the region)"
+        )
+    if need_rng and not isinstance(rng, np.random.Generator):
+        raise ValidationError("rng", rng, "a numpy.random.Generator is required")
+    return measurements, prior
