@@ -7,7 +7,10 @@ steps of one run after a warm-up run (JIT compilation). Figures (names are the i
 ``pfbp.s1_rinf.step_s``                   PF-BP wall time per time step, joint processing [s]
 ``pfbp.s1_rinf.agent_s``                  ... per agent (distributed processing) [s]
 ``pfbp.particle_flow_steps_per_s``        particles × λ-steps × agents × iterations per second
-``pfbp_numpy.s1_rinf.step_s``             PF-BP with the NumPy flow twin [s]
+``pfbp_numpy.s1_rinf.step_s``             PF-BP with the NumPy flow twin [s] (``range_flow_numpy``
+                                          of ``tests/naive_flow.py``, swapped in by
+                                          :func:`phyloc.localization.tracking.use_flow`; omitted,
+                                          with the ratio, outside a source checkout)
 ``pfbp.flow_kernel.speedup_vs_numpy``     ratio of the two
 ``edh.s1_rinf.step_s``                    centralized EDH filter per time step [s]
 ``sirbp.s1_rinf.step_s``                  SIR-BP per time step [s] (``sirbp.n_particles`` per agent)
@@ -21,7 +24,15 @@ steps of one run after a warm-up run (JIT compilation). Figures (names are the i
 ``sirbp_over_pfbp.s2_r18.step_ratio``     SIR-BP time / PF-BP time per step in Scenario II
 
 Everything runs with one BLAS thread (as the experiment runner does): the matrices are small, and
-OpenBLAS threads on a busy machine made a Scenario II step up to 10x slower.
+OpenBLAS threads on a busy machine made a Scenario II step up to 10x slower. The trackers run
+through :data:`phyloc.localization.METHODS` on the truth-free measurements of a simulated
+scenario (:mod:`phyloc.evaluation.range_scenarios`).
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
+Information Processing over Networks 9, 2023 (Tables I, II).
 """
 
 from __future__ import annotations
@@ -31,18 +42,26 @@ import dataclasses
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from phyloc.localization.tracking.edh import run_edh
-from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.tracking.range_models import (
+from phyloc.evaluation.range_scenarios import scenario_network_spec, simulate_scenario
+from phyloc.localization.tracking import (
+    PFBPOptions,
     RangeModel,
+    SIRBPOptions,
+    SPBPOptions,
     paper_prior,
-    scenario_network_spec,
-    simulate_scenario,
+    run_edh,
+    run_pfbp,
+    run_sirbp,
+    run_spbp,
+    use_flow,
 )
-from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
-from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
 from phyloc.network import make_network
 from phyloc.reporting import format_table
+
+try:
+    from phyloc.benchmarks._reference import MISSING, naive
+except ImportError:  # run from the source tree by asv
+    from benchmarks._reference import MISSING, naive
 
 N_AGENTS = 5
 N_PARTICLES = 200
@@ -50,48 +69,62 @@ N_LAMBDA = 20
 N_ITER = 2
 
 
+def _numpy_flow():
+    """The NumPy twin of the flow kernel (``tests/naive_flow.py``), or None."""
+    module = naive("naive_flow")
+    return None if module is None else module.range_flow_numpy
+
+
 def make_scenario(n_steps=5, seed=0, n_agents=N_AGENTS, comm_range_m=None):
-    """Scenario I (or, with 20 agents and r_max = 18 m, II) realization and its eq. (31) prior."""
+    """Measurements of a Scenario I (or, with 20 agents and r_max = 18 m, II) realization and
+    their PF-BP eq. (31) prior."""
     rng = np.random.default_rng(seed)
     spec = scenario_network_spec(n_agents, n_steps)
     if comm_range_m is not None:
         spec = dataclasses.replace(spec, comm_range_m=comm_range_m)
     net = make_network(spec, rng)
     sc = simulate_scenario(net, RangeModel(), rng, comm_range_m=comm_range_m)
-    mean, cov = paper_prior(sc, rng)
-    return sc, mean, cov
+    meas = sc.measurements()
+    return meas, paper_prior(meas, rng)
 
 
-def _median_step(fn, sc, mean, cov, opt):
-    fn(sc, mean, cov, np.random.default_rng(1), opt)  # warm-up (JIT)
-    r = fn(sc, mean, cov, np.random.default_rng(2), opt)
-    return float(np.median(r.step_s)), float(np.median(r.agent_s))
+def _median_step(fn, meas, prior, opt, flow=None):
+    with use_flow(flow):
+        fn(meas, prior, np.random.default_rng(1), opt)  # warm-up (JIT)
+        r = fn(meas, prior, np.random.default_rng(2), opt)
+    return float(np.median(r.timing.step_s)), float(np.median(r.timing.agent_s))
 
 
 class TimeStep:
-    """asv: one PF-BP time step on Scenario I."""
+    """asv: one PF-BP time step on Scenario I, numba flow kernel or its NumPy twin."""
 
     params = [["numba", "numpy"]]
     param_names = ["backend"]
 
     def setup(self, backend):
-        self.sc, self.mean, self.cov = make_scenario(n_steps=1)
-        self.opt = PFBPOptions(backend=backend)
-        run_pfbp(self.sc, self.mean, self.cov, np.random.default_rng(0), self.opt)
+        self.flow = None
+        if backend == "numpy":
+            self.flow = _numpy_flow()
+            if self.flow is None:
+                raise NotImplementedError(MISSING)  # asv skips the parameter
+        self.meas, self.prior = make_scenario(n_steps=1)
+        self.opt = PFBPOptions()
+        self.time_pfbp_step(backend)
 
     def time_pfbp_step(self, backend):
-        run_pfbp(self.sc, self.mean, self.cov, np.random.default_rng(0), self.opt)
+        with use_flow(self.flow):
+            run_pfbp(self.meas, self.prior, np.random.default_rng(0), self.opt)
 
 
 class TimeSPBPStep:
     """asv: one SP-BP time step on Scenario I."""
 
     def setup(self):
-        self.sc, self.mean, self.cov = make_scenario(n_steps=1)
+        self.meas, self.prior = make_scenario(n_steps=1)
         self.opt = SPBPOptions(n_iterations=N_ITER)
 
     def time_spbp_step(self):
-        run_spbp(self.sc, self.mean, self.cov, None, self.opt)
+        run_spbp(self.meas, self.prior, None, self.opt)
 
 
 def report(quick: bool = False) -> dict[str, float]:
@@ -105,7 +138,7 @@ def report(quick: bool = False) -> dict[str, float]:
 def _report_s2(quick: bool) -> dict[str, float]:
     """Scenario II (20 agents, r_max = 18 m): time per step and per agent (Table II)."""
     n_sir = 10_000 if quick else 100_000
-    sc, mean, cov = make_scenario(1 if quick else 2, seed=1, n_agents=20, comm_range_m=18.0)
+    meas, prior = make_scenario(1 if quick else 2, seed=1, n_agents=20, comm_range_m=18.0)
     opt = PFBPOptions(n_particles=N_PARTICLES, n_lambda=N_LAMBDA, n_iterations=N_ITER)
     fig: dict[str, float] = {}
     runs = {
@@ -115,7 +148,7 @@ def _report_s2(quick: bool) -> dict[str, float]:
         "spbp": (run_spbp, SPBPOptions(n_iterations=N_ITER)),
     }
     for name, (fn, o) in runs.items():
-        step, agent = _median_step(fn, sc, mean, cov, o)
+        step, agent = _median_step(fn, meas, prior, o)
         fig[f"{name}.s2_r18.step_s"] = step
         if name != "edh":
             fig[f"{name}.s2_r18.agent_s"] = agent
@@ -128,7 +161,7 @@ def _report_s2(quick: bool) -> dict[str, float]:
 def _report_s1(quick: bool) -> dict[str, float]:
     n_steps = 3 if quick else 10
     n_sir = 10_000 if quick else 100_000
-    sc, mean, cov = make_scenario(n_steps)
+    meas, prior = make_scenario(n_steps)
     opt = PFBPOptions(n_particles=N_PARTICLES, n_lambda=N_LAMBDA, n_iterations=N_ITER)
     fig: dict[str, float] = {
         "n_agents": N_AGENTS,
@@ -136,19 +169,23 @@ def _report_s1(quick: bool) -> dict[str, float]:
         "n_lambda": N_LAMBDA,
         "sirbp.n_particles": n_sir,
     }
-    step, agent = _median_step(run_pfbp, sc, mean, cov, opt)
+    step, agent = _median_step(run_pfbp, meas, prior, opt)
     fig["pfbp.s1_rinf.step_s"] = step
     fig["pfbp.s1_rinf.agent_s"] = agent
     fig["pfbp.particle_flow_steps_per_s"] = N_PARTICLES * N_LAMBDA * N_AGENTS * N_ITER / step
-    np_opt = PFBPOptions(n_particles=N_PARTICLES, n_lambda=N_LAMBDA, backend="numpy")
-    fig["pfbp_numpy.s1_rinf.step_s"] = _median_step(run_pfbp, sc, mean, cov, np_opt)[0]
-    fig["pfbp.flow_kernel.speedup_vs_numpy"] = fig["pfbp_numpy.s1_rinf.step_s"] / step
-    fig["edh.s1_rinf.step_s"] = _median_step(run_edh, sc, mean, cov, opt)[0]
-    sir_step, sir_agent = _median_step(run_sirbp, sc, mean, cov, SIRBPOptions(n_particles=n_sir))
+    flow = _numpy_flow()
+    if flow is None:
+        print(MISSING)
+    else:
+        np_opt = PFBPOptions(n_particles=N_PARTICLES, n_lambda=N_LAMBDA)
+        fig["pfbp_numpy.s1_rinf.step_s"] = _median_step(run_pfbp, meas, prior, np_opt, flow)[0]
+        fig["pfbp.flow_kernel.speedup_vs_numpy"] = fig["pfbp_numpy.s1_rinf.step_s"] / step
+    fig["edh.s1_rinf.step_s"] = _median_step(run_edh, meas, prior, opt)[0]
+    sir_step, sir_agent = _median_step(run_sirbp, meas, prior, SIRBPOptions(n_particles=n_sir))
     fig["sirbp.s1_rinf.step_s"] = sir_step
     fig["sirbp.s1_rinf.agent_s"] = sir_agent
     fig["sirbp_over_pfbp.step_ratio"] = sir_step / step
-    sp_step, sp_agent = _median_step(run_spbp, sc, mean, cov, SPBPOptions(n_iterations=N_ITER))
+    sp_step, sp_agent = _median_step(run_spbp, meas, prior, SPBPOptions(n_iterations=N_ITER))
     fig["spbp.s1_rinf.step_s"] = sp_step
     fig["spbp.s1_rinf.agent_s"] = sp_agent
     return fig
@@ -158,7 +195,7 @@ def summarize(fig: dict) -> str:
     """A table of the figures of :func:`report`."""
     rows = [
         ("PF-BP (numba flow)", fig["pfbp.s1_rinf.step_s"], fig["pfbp.s1_rinf.agent_s"]),
-        ("PF-BP (NumPy flow)", fig["pfbp_numpy.s1_rinf.step_s"], None),
+        ("PF-BP (NumPy flow)", fig.get("pfbp_numpy.s1_rinf.step_s", float("nan")), None),
         ("EDH (joint)", fig["edh.s1_rinf.step_s"], None),
         (
             f"SIR-BP ({int(fig['sirbp.n_particles'])} particles)",
@@ -178,9 +215,10 @@ def summarize(fig: dict) -> str:
         )
     ]
     table2 = format_table(rows2, ["Scenario II, r_max = 18 m", "step [s]", "per agent [s]"])
+    speedup = fig.get("pfbp.flow_kernel.speedup_vs_numpy", float("nan"))
     return (
         f"{table}\n{table2}\n"
         f"PF-BP particles x lambda-steps per s: {fig['pfbp.particle_flow_steps_per_s']:.4g}; "
-        f"flow kernel speed-up vs NumPy: {fig['pfbp.flow_kernel.speedup_vs_numpy']:.3g}; "
+        f"flow kernel speed-up vs NumPy: {speedup:.3g}; "
         f"SIR-BP / PF-BP per step: {fig['sirbp_over_pfbp.step_ratio']:.3g}"
     )

@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from phyloc.localization.tracking.range_models import RangeModel, RangeScenario
+from phyloc.evaluation.range_scenarios import RangeScenario
+from phyloc.localization.tracking import RangeModel
 
 
 def degenerate_scenario(K):

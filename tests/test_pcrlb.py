@@ -5,8 +5,8 @@ import pytest
 
 from phyloc.analysis.pcrlb import pcrlb, pcrlb_recursion, range_information
 from phyloc.errors import ValidationError
-from phyloc.localization.tracking import _flow
-from phyloc.localization.tracking.range_models import RangeModel, RangeScenario
+from phyloc.evaluation.range_scenarios import RangeScenario
+from phyloc.localization.tracking import RangeModel, _flow
 from phyloc.network.motion import transition_matrices
 
 

@@ -2,24 +2,31 @@
 
 import numpy as np
 import pytest
+from naive_flow import paired_range_loglik_numpy, range_flow_numpy
 from range_fixtures import degenerate_scenario
 
 from phyloc.analysis.pcrlb import pcrlb
 from phyloc.errors import ValidationError
-from phyloc.localization.tracking import _flow
-from phyloc.localization.tracking.edh import run_edh
-from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.tracking.range_models import (
-    RangeModel,
+from phyloc.evaluation.range_scenarios import (
     RangeScenario,
-    agent_measurements,
-    all_measurements,
-    paper_prior,
     scenario_network_spec,
     simulate_scenario,
     state_errors,
 )
-from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
+from phyloc.localization.tracking import (
+    GaussianPrior,
+    PFBPOptions,
+    RangeMeasurements,
+    RangeModel,
+    SIRBPOptions,
+    _flow,
+    paper_prior,
+    run_edh,
+    run_pfbp,
+    run_sirbp,
+    use_flow,
+)
+from phyloc.localization.tracking.range_models import agent_measurements, all_measurements
 from phyloc.network import make_network
 
 
@@ -130,7 +137,7 @@ def test_range_flow_kernel_equals_numpy_twin(rng, n_flow, dense, many):
     # looser 20-step tolerance in those cases.
     for n_lambda, tol in ((1, 1e-10), (20, 1e-6 if dense or many else 1e-9)):
         lam, steps = _flow.lambda_schedule(n_lambda)
-        Xa, ma = _flow.range_flow_numpy(
+        Xa, ma = range_flow_numpy(
             X, mean, P, off_a, off_b, anchors, z, r_var, dim, n_flow, lam, steps
         )
         Xb, mb = X.copy(), mean.copy()
@@ -159,7 +166,7 @@ def test_paired_loglik_kernel_equals_numpy_twin(rng, my):
     x, y = rng.normal(size=(50, 3)), rng.normal(size=(my, 3))
     out = np.full(50, 1.5)
     _flow.paired_range_loglik_kernel(x, y, 1.2, 100.0, out)
-    np.testing.assert_allclose(out, 1.5 + _flow.paired_range_loglik_numpy(x, y, 1.2, 100.0))
+    np.testing.assert_allclose(out, 1.5 + paired_range_loglik_numpy(x, y, 1.2, 100.0))
 
 
 def test_ukf_update_matches_kalman_in_the_linear_regime(rng):
@@ -226,8 +233,17 @@ def test_validation_errors():
     with pytest.raises(ValidationError, match="factors"):
         SIRBPOptions(factors="both")
     sc, rng = _scenario(0, n_steps=1)
-    with pytest.raises(ValidationError, match="prior_mean"):
-        run_pfbp(sc, np.zeros((5, 6)), np.zeros((5, 6, 6)), rng)
+    meas = sc.measurements()
+    with pytest.raises(ValidationError, match=r"prior\.mean"):
+        run_pfbp(meas, GaussianPrior(np.zeros((5, 6)), np.zeros((5, 6, 6))), rng)
+    with pytest.raises(ValidationError, match=r"prior\.cov"):
+        GaussianPrior(np.zeros((5, 9)), np.zeros((5, 6, 6)))
+    with pytest.raises(ValidationError, match="measurements"):
+        run_pfbp(sc, paper_prior(meas, rng), rng)  # the scenario (with truth) is not accepted
+    with pytest.raises(ValidationError, match="z"):
+        RangeMeasurements(RangeModel(), sc.anchors, sc.z[:, :, :-1])
+    with pytest.raises(ValidationError, match="anchors"):
+        RangeMeasurements(RangeModel(), sc.anchors[:, :2], sc.z)
 
 
 # ---- trackers -------------------------------------------------------------------------------
@@ -237,9 +253,11 @@ def test_pfbp_tracks_at_pcrlb_level():
     err_pf, err_edh, scs, P0 = [], [], [], None
     for seed in range(runs):
         sc, rng = _scenario(100 + seed, n_steps=K)
-        m, P0 = paper_prior(sc, rng)
-        err_pf.append(state_errors(run_pfbp(sc, m, P0, rng), sc)["p"] ** 2)
-        err_edh.append(state_errors(run_edh(sc, m, P0, rng), sc)["p"] ** 2)
+        meas = sc.measurements()
+        prior = paper_prior(meas, rng)
+        P0 = prior.cov
+        err_pf.append(state_errors(run_pfbp(meas, prior, rng), sc)["p"] ** 2)
+        err_edh.append(state_errors(run_edh(meas, prior, rng), sc)["p"] ** 2)
         scs.append(sc)
     bound = pcrlb(scs, P0).bounds["p"]
     rmse_pf = np.sqrt(np.mean(err_pf, axis=0))
@@ -256,10 +274,11 @@ def test_sirbp_with_many_particles_reaches_the_bound_static_2d():
     for seed in range(runs):
         sc, rng = _scenario(200 + seed, n_agents=4, n_steps=1, motion="static", dim=2)
         P0 = np.repeat(np.eye(2)[None] * 0.25, 4, axis=0)
-        m = sc.initial_states + rng.normal(size=(4, 2)) * 0.5
-        sir = run_sirbp(sc, m, P0, rng, SIRBPOptions(n_particles=50_000, uniform_positions=False))
-        e_sir.append(state_errors(sir, sc)["p"] ** 2)
-        e_pf.append(state_errors(run_pfbp(sc, m, P0, rng), sc)["p"] ** 2)
+        prior = GaussianPrior(sc.initial_states + rng.normal(size=(4, 2)) * 0.5, P0)
+        meas = sc.measurements()
+        opt = SIRBPOptions(n_particles=50_000, uniform_positions=False)
+        e_sir.append(state_errors(run_sirbp(meas, prior, rng, opt), sc)["p"] ** 2)
+        e_pf.append(state_errors(run_pfbp(meas, prior, rng), sc)["p"] ** 2)
         scs.append(sc)
     bound = pcrlb(scs, P0).bounds["p"][0]
     assert np.sqrt(np.mean(e_sir)) < 2.0 * bound
@@ -270,20 +289,40 @@ def test_reproducible_for_a_seed():
     out = []
     for _ in range(2):
         sc, rng = _scenario(7, n_steps=2)
-        m, P = paper_prior(sc, rng)
-        out.append(run_pfbp(sc, m, P, rng, PFBPOptions(n_particles=50)).mean)
-        out.append(run_sirbp(sc, m, P, rng, SIRBPOptions(n_particles=500)).mean)
-        out.append(run_edh(sc, m, P, rng, PFBPOptions(n_particles=50)).mean)
+        meas = sc.measurements()
+        prior = paper_prior(meas, rng)
+        out.append(run_pfbp(meas, prior, rng, PFBPOptions(n_particles=50)).estimates)
+        out.append(run_sirbp(meas, prior, rng, SIRBPOptions(n_particles=500)).estimates)
+        out.append(run_edh(meas, prior, rng, PFBPOptions(n_particles=50)).estimates)
     for a, b in zip(out[:3], out[3:], strict=True):
         np.testing.assert_array_equal(a, b)
 
 
-def test_numpy_backend_gives_the_same_track():
+def test_numpy_flow_gives_the_same_track():
+    """PF-BP and EDH with the NumPy twin swapped in by ``use_flow``: the same tracks."""
     sc, rng = _scenario(8, n_steps=2)
-    m, P = paper_prior(sc, rng)
-    a = run_pfbp(sc, m, P, np.random.default_rng(1), PFBPOptions(n_particles=40))
-    b = run_pfbp(sc, m, P, np.random.default_rng(1), PFBPOptions(n_particles=40, backend="numpy"))
-    np.testing.assert_allclose(a.mean, b.mean, rtol=1e-7, atol=1e-7)
+    meas = sc.measurements()
+    prior = paper_prior(meas, rng)
+    opt = PFBPOptions(n_particles=40)
+    calls = []
+
+    def twin(*args):
+        calls.append(1)
+        return range_flow_numpy(*args)
+
+    for run in (run_pfbp, run_edh):
+        calls.clear()
+        a = run(meas, prior, np.random.default_rng(1), opt)
+        with use_flow(twin):
+            b = run(meas, prior, np.random.default_rng(1), opt)
+        assert calls  # the twin really ran
+        np.testing.assert_allclose(a.estimates, b.estimates, rtol=1e-7, atol=1e-7)
+    calls.clear()
+    run_pfbp(meas, prior, np.random.default_rng(1), opt)
+    assert not calls  # outside the block, the numba kernel is back
+    with pytest.raises(ValidationError, match="flow"):
+        with use_flow("numpy"):
+            pass
 
 
 def test_degenerate_geometry_stays_finite():
@@ -293,15 +332,16 @@ def test_degenerate_geometry_stays_finite():
     assert np.all(np.isnan(sc.z[:, 2]))
     expected = np.stack([(np.linalg.matrix_power(F, k + 1) @ m[2])[:3] for k in range(K)])
     sir = SIRBPOptions(n_particles=2000, regularize=True, uniform_positions=False)
+    meas, prior = sc.measurements(), GaussianPrior(m, P)
     for r, tol in (
-        (run_pfbp(sc, m, P, rng, PFBPOptions(n_particles=200, regularize=True)), 0.6),
-        (run_edh(sc, m, P, rng, PFBPOptions(n_particles=200)), 2.0),  # joint resampling
-        (run_sirbp(sc, m, P, rng, sir), 0.6),
+        (run_pfbp(meas, prior, rng, PFBPOptions(n_particles=200, regularize=True)), 0.6),
+        (run_edh(meas, prior, rng, PFBPOptions(n_particles=200)), 2.0),  # joint resampling
+        (run_sirbp(meas, prior, rng, sir), 0.6),
     ):
-        assert np.all(np.isfinite(r.mean)) and np.all(np.isfinite(r.cov))
+        assert np.all(np.isfinite(r.estimates)) and np.all(np.isfinite(r.covariances))
         # the isolated agent is only predicted (its mean follows F; 5 MC std)
-        np.testing.assert_allclose(r.mean[:, 2, :3], expected, atol=tol)
-        assert np.all(np.abs(r.mean[:, 0, :3] - 5.0) < 0.5)  # the other one is localized
+        np.testing.assert_allclose(r.estimates[:, 2, :3], expected, atol=tol)
+        assert np.all(np.abs(r.estimates[:, 0, :3] - 5.0) < 0.5)  # the other one is localized
 
 
 def test_scenario_validation():

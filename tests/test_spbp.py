@@ -7,17 +7,22 @@ from range_fixtures import degenerate_scenario
 
 from phyloc.analysis.pcrlb import pcrlb
 from phyloc.errors import ValidationError
-from phyloc.localization.tracking import _flow
-from phyloc.localization.tracking.pfbp import run_pfbp
-from phyloc.localization.tracking.range_models import (
-    RangeModel,
+from phyloc.evaluation.range_scenarios import (
     RangeScenario,
-    paper_prior,
     scenario_network_spec,
     simulate_scenario,
     state_errors,
 )
-from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp, unscented_range_update
+from phyloc.localization.tracking import (
+    GaussianPrior,
+    RangeModel,
+    SPBPOptions,
+    _flow,
+    paper_prior,
+    run_pfbp,
+    run_spbp,
+)
+from phyloc.localization.tracking.spbp import unscented_range_update
 from phyloc.network import make_network
 
 
@@ -41,10 +46,11 @@ def test_one_agent_with_anchors_is_an_unscented_kalman_filter(r_max, n_iteration
     sc, rng = _scenario(31, n_agents=1, n_steps=15, r_max=r_max)
     P0 = np.diag(np.r_[np.full(3, 4.0), np.full(3, 0.25), np.full(3, 0.05)])
     m0 = sc.initial_states[0] + rng.multivariate_normal(np.zeros(9), P0)
-    got = run_spbp(sc, m0[None], P0[None], options=SPBPOptions(n_iterations=n_iterations))
+    prior = GaussianPrior(m0[None], P0[None])
+    got = run_spbp(sc.measurements(), prior, options=SPBPOptions(n_iterations=n_iterations))
     mean, cov = ukf_track(m0, P0, sc.z[:, 0, 1:], sc.anchors, 3, 0.1, 0.15, 0.1)
-    np.testing.assert_allclose(got.mean[:, 0], mean, rtol=1e-9, atol=1e-9)
-    np.testing.assert_allclose(got.cov[:, 0], cov, rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(got.estimates[:, 0], mean, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(got.covariances[:, 0], cov, rtol=1e-7, atol=1e-12)
     assert state_errors(got, sc)["p"][-1] < 0.5  # and it localizes
 
 
@@ -71,48 +77,53 @@ def test_degenerate_geometry_stays_finite():
     _, model, anchors, states, z, sc, m, P, F = degenerate_scenario(4)
     K = 4
     assert np.all(np.isnan(sc.z[:, 2]))
+    prior = GaussianPrior(m, P)
     for opt in (SPBPOptions(), SPBPOptions(regularize=True), SPBPOptions(factors="centralized")):
-        r = run_spbp(sc, m, P, options=opt)
-        assert np.all(np.isfinite(r.mean)) and np.all(np.isfinite(r.cov))
-        assert np.all(np.linalg.eigvalsh(r.cov) > -1e-9)
+        r = run_spbp(sc.measurements(), prior, options=opt)
+        assert np.all(np.isfinite(r.estimates)) and np.all(np.isfinite(r.covariances))
+        assert np.all(np.linalg.eigvalsh(r.covariances) > -1e-9)
         expected = np.stack([np.linalg.matrix_power(F, k + 1) @ m[2] for k in range(K)])
-        np.testing.assert_allclose(r.mean[:, 2], expected, rtol=1e-12, atol=1e-12)
-        assert np.all(np.abs(r.mean[-1, 0, :3] - 5.0) < 0.5)  # the other one is localized
+        np.testing.assert_allclose(r.estimates[:, 2], expected, rtol=1e-12, atol=1e-12)
+        assert np.all(np.abs(r.estimates[-1, 0, :3] - 5.0) < 0.5)  # the other one is localized
     # an agent exactly on an anchor (zero range): still finite
     states2 = states.copy()
     states2[:, 0, :3] = anchors[1]
     z2 = z.copy()
     z2[0, 4] = 0.0
     sc2 = RangeScenario(model, anchors, states2[0], states2, np.repeat(z2[None], K, axis=0), 30.0)
-    r = run_spbp(sc2, m, P)
-    assert np.all(np.isfinite(r.mean)) and np.all(np.isfinite(r.cov))
+    r = run_spbp(sc2.measurements(), prior)
+    assert np.all(np.isfinite(r.estimates)) and np.all(np.isfinite(r.covariances))
 
 
 def test_reproducible_and_independent_of_rng():
     out = []
     for rng_arg in (None, np.random.default_rng(5), np.random.default_rng(6)):
         sc, rng = _scenario(7, n_steps=3)
-        m, P = paper_prior(sc, rng)
-        out.append(run_spbp(sc, m, P, rng_arg))
+        meas = sc.measurements()
+        out.append(run_spbp(meas, paper_prior(meas, rng), rng_arg))
     for r in out[1:]:
-        np.testing.assert_array_equal(r.mean, out[0].mean)
-        np.testing.assert_array_equal(r.cov, out[0].cov)
-    assert out[0].label == "spbp" and out[0].step_s.shape == (3,)
+        np.testing.assert_array_equal(r.estimates, out[0].estimates)
+        np.testing.assert_array_equal(r.covariances, out[0].covariances)
+    assert out[0].label == "spbp" and out[0].timing.step_s.shape == (3,)
+    assert out[0].timing.agent_iterations == 3 * 2 * 5  # K · U · n_agents
 
 
 def test_validation_errors():
     sc, rng = _scenario(0, n_steps=1)
-    m, P = paper_prior(sc, rng)
+    meas = sc.measurements()
+    prior = paper_prior(meas, rng)
     with pytest.raises(ValidationError, match="factors"):
         SPBPOptions(factors="both")
     with pytest.raises(ValidationError, match="n_iterations"):
         SPBPOptions(n_iterations=0)
     with pytest.raises(ValidationError, match="options"):
-        run_spbp(sc, m, P, rng, options={"n_iterations": 2})
+        run_spbp(meas, prior, rng, options={"n_iterations": 2})
     with pytest.raises(ValidationError, match="rng"):
-        run_spbp(sc, m, P, 3)
-    with pytest.raises(ValidationError, match="prior_mean"):
-        run_spbp(sc, np.zeros((5, 6)), P)
+        run_spbp(meas, prior, 3)
+    with pytest.raises(ValidationError, match=r"prior\.mean"):
+        run_spbp(meas, GaussianPrior(np.zeros((5, 6)), prior.cov[:, :6, :6]))
+    with pytest.raises(ValidationError, match="prior"):
+        run_spbp(meas, (prior.mean, prior.cov))
     with pytest.raises(ValidationError):
         SPBPOptions.from_dict({"n_iteration": 2})
 
@@ -127,9 +138,11 @@ def test_spbp_tracks_and_pfbp_is_more_accurate_at_k10():
     e_sp, e_pf, scs, P0 = [], [], [], None
     for seed in range(runs):
         sc, rng = _scenario(100 + seed, n_steps=K)
-        m, P0 = paper_prior(sc, rng)
-        e_sp.append(state_errors(run_spbp(sc, m, P0), sc)["p"] ** 2)
-        e_pf.append(state_errors(run_pfbp(sc, m, P0, rng), sc)["p"] ** 2)
+        meas = sc.measurements()
+        prior = paper_prior(meas, rng)
+        P0 = prior.cov
+        e_sp.append(state_errors(run_spbp(meas, prior), sc)["p"] ** 2)
+        e_pf.append(state_errors(run_pfbp(meas, prior, rng), sc)["p"] ** 2)
         scs.append(sc)
     bound = pcrlb(scs, P0).bounds["p"]
     rmse_sp = np.sqrt(np.mean(e_sp, axis=0))

@@ -1,8 +1,8 @@
 """Posterior Cramér–Rao lower bound (PCRLB) of the joint agent state, Tichavský recursion.
 
-For the linear-Gaussian motion ``x^{(k)} = F̃ x^{(k−1)} + w``, ``w ~ N(0, W)`` (PF-BP eqs. (45)–(48),
-``F̃ = I ⊗ F``, ``W = I ⊗ Q``) and range measurements (eq. (8)), the posterior Fisher information
-of the joint state obeys (Tichavský, Muravchik, Nehorai 1998)
+For the linear-Gaussian motion ``x^{(k)} = F̃ x^{(k−1)} + w``, ``w ~ N(0, W)`` (PF-BP
+eqs. (45)–(48), ``F̃ = I ⊗ F``, ``W = I ⊗ Q``) and range measurements (PF-BP eq. (8)), the
+posterior Fisher information of the joint state obeys (Tichavský, Muravchik, Nehorai 1998)
 
 .. math::
 
@@ -16,7 +16,8 @@ unit vector from ``p_j`` to ``p_i``; for an agent–agent range also ``−u uᵀ
 blocks and ``+u uᵀ/σ²`` on ``j``'s block). The expectation over true trajectories (and the
 connectivity they imply) is a Monte Carlo average over scenarios. The bound on the RMSE of
 position (velocity, acceleration) at time ``k`` is ``sqrt(tr(C_pos)/|C|)`` with
-``C = (J^{(k)})^{-1}`` — comparable to :func:`~phyloc.localization.tracking.range_models.state_errors`.
+``C = (J^{(k)})^{-1}`` — comparable to the RMSE of
+:func:`~phyloc.evaluation.range_scenarios.state_errors`.
 
 Two ways to average over trajectories are offered (``average=``):
 
@@ -30,6 +31,14 @@ Two ways to average over trajectories are offered (``average=``):
   average of informations hides the poorly connected trajectories that dominate the MSE. It is
   the benchmark most tracking studies plot, and it is the one a filter can actually approach
   on a given set of trajectories; it is not a strict Bayesian bound.
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
+Information Processing over Networks 9, 2023.
+P. Tichavský, C. H. Muravchik and A. Nehorai, "Posterior Cramér–Rao bounds for discrete-time
+nonlinear filtering," IEEE Trans. Signal Processing 46(5), pp. 1386–1396, 1998.
 """
 
 from __future__ import annotations
@@ -144,11 +153,14 @@ def pcrlb(scenarios, prior_cov: np.ndarray, *, average: str = "information") -> 
 
     Parameters
     ----------
-    scenarios : sequence of RangeScenario
-        Independent realizations (true trajectories, connectivity) of one setting: same model,
-        number of agents and steps.
+    scenarios : sequence of objects with ``model``, ``anchors``, ``states``, ``z``
+        Independent realizations of one setting (same model, number of agents and steps), e.g.
+        :class:`~phyloc.evaluation.range_scenarios.RangeScenario`: ``model`` (with ``dim``,
+        ``order``, ``state_dim``, ``sigma_r``, ``matrices()``), true ``states [K, n_agents,
+        N_D]``, ``anchors [n_anchors, dim]`` and ranges ``z [K, n_agents, n_nodes]`` whose
+        finite entries mark the measured pairs (their values do not enter the bound).
     prior_cov : [n_agents, N_D, N_D] float64
-        ``P_i^{(0)}`` (eq. (31)).
+        ``P_i^{(0)}`` (PF-BP eq. (31)).
     average : {"information", "bound"}
         Average the measurement information over scenarios (the Bayesian PCRLB, default) or
         the per-scenario bounds (the conditional bound); see the module docstring.

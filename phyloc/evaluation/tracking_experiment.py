@@ -3,31 +3,36 @@
 A recipe of ``kind = "tracking"`` runs, for every scenario token of ``experiment.scenarios``
 (``{token = {n_agents = N, comm_range_m = r_max}}``; ``comm_range_m`` omitted or ``inf``: fully
 connected) and every Monte Carlo run (one task each): a network of PF-BP §VI
-(:func:`~phyloc.localization.tracking.range_models.scenario_network_spec`: agents uniform in a
+(:func:`~phyloc.evaluation.range_scenarios.scenario_network_spec`: agents uniform in a
 ``side_m`` cube, 9 anchors at its corners and centre in 3-D (5 in 2-D), initial velocity a unit
 vector toward the centre, CA/CV motion with ``dt_s``, ``accel_std``), range measurements, the
-prior of eq. (31) (:func:`~phyloc.localization.tracking.range_models.paper_prior`, ``sigma_p``) and every
-method of ``experiment.methods`` on the *same* measurements from the *same* prior mean:
+prior of PF-BP eq. (31) (:func:`~phyloc.localization.tracking.paper_prior`, ``sigma_p``) and
+every method of ``experiment.methods`` — any method of the ``"tracking"`` family of
+:data:`phyloc.localization.METHODS` — on the *same* measurements (without the truth) from the
+*same* prior:
 
-``pfbp``      PF-BP, Algorithm 1 (:func:`~phyloc.localization.tracking.pfbp.run_pfbp`)
-``pfbp_reg``  PF-BP with the regularization of eqs. (32), (33) ("reg" in the paper)
-``sirbp``     bootstrap-particle BP, §V-B (:func:`~phyloc.localization.tracking.sirbp.run_sirbp`)
-``spbp``      sigma-point BP (:func:`~phyloc.localization.tracking.spbp.run_spbp`)
-``edh``       centralized EDH particle-flow filter, App. B
-              (:func:`~phyloc.localization.tracking.edh.run_edh`)
+``pfbp``      PF-BP, PF-BP Algorithm 1 (:func:`~phyloc.localization.tracking.run_pfbp`)
+``pfbp_reg``  PF-BP with the regularization of PF-BP eqs. (32), (33) ("reg" in the paper)
+``sirbp``     bootstrap-particle BP, PF-BP §V-B (:func:`~phyloc.localization.tracking.run_sirbp`)
+``spbp``      sigma-point BP (:func:`~phyloc.localization.tracking.run_spbp`)
+``edh``       centralized EDH particle-flow filter, PF-BP Appendix B
+              (:func:`~phyloc.localization.tracking.run_edh`)
 
-Method options are ``[localization.<method>]`` tables (keys of :class:`PFBPOptions`,
-:class:`SIRBPOptions`, :class:`SPBPOptions`; ``pfbp_reg`` defaults to ``regularize = true``);
-``experiment.method_options`` (usually in ``[experiment.fast]``) overrides single keys, e.g.
-SIR-BP's particle count in the CI setting. The PCRLB (:mod:`phyloc.analysis.pcrlb`) is the
-Tichavský recursion with the range information averaged over the true trajectories of all runs
-(the Bayesian bound, ``pcrlb.*``); ``pcrlb_cond.*`` averages the per-trajectory bounds instead
-(the conditional bound, never lower; see :mod:`phyloc.analysis.pcrlb`).
+Method options are ``[localization.<method>]`` tables (the keys of the method's options
+dataclass, :class:`~phyloc.localization.tracking.PFBPOptions`,
+:class:`~phyloc.localization.tracking.SIRBPOptions`,
+:class:`~phyloc.localization.tracking.SPBPOptions`, over the method's registered defaults:
+``pfbp_reg`` has ``regularize = true``); ``experiment.method_options`` (usually in
+``[experiment.fast]``) overrides single keys, e.g. SIR-BP's particle count in the CI setting.
+The PCRLB (:mod:`phyloc.analysis.pcrlb`) is the Tichavský recursion with the range information
+averaged over the true trajectories of all runs (the Bayesian bound, ``pcrlb.*``);
+``pcrlb_cond.*`` averages the per-trajectory bounds instead (the conditional bound, never
+lower; see :mod:`phyloc.analysis.pcrlb`).
 
 Measurements (``experiment.measurements``)
-    ``"gaussian"``  the paper's model (eq. (8)): ``z = ‖p_i − p_j‖ + N(0, σ²)``, ``σ = sigma_r``,
-                    for every pair within ``comm_range_m``
-                    (:func:`~phyloc.localization.tracking.range_models.simulate_scenario`).
+    ``"gaussian"``  the paper's model (PF-BP eq. (8)): ``z = ‖p_i − p_j‖ + N(0, σ²)``,
+                    ``σ = sigma_r``, for every pair within ``comm_range_m``
+                    (:func:`~phyloc.evaluation.range_scenarios.simulate_scenario`).
     ``"sage"``      ranges estimated from simulated waveforms: per realization
                     :func:`~phyloc.datasets.simulate.simulate_realization` draws the network
                     (the same spec; ``[system]``, ``[channel]`` — e.g. WINNER II C2), channels
@@ -61,8 +66,9 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)
     ``<m>.<s>.rmse_p_all_m``         position RMSE over the whole trajectory
     ``<m>.<s>.step_s``               wall time per time step, joint processing [s] (Tables I, II):
                                      median over all steps of all runs
-    ``<m>.<s>.agent_s``              ... per agent, distributed processing [s] (not for ``edh``,
-                                     which has no distributed form)
+    ``<m>.<s>.agent_s``              ... per agent, distributed processing [s] (not for methods
+                                     without a distributed form, whose ``agent_s`` is NaN:
+                                     ``edh``)
     ``sirbp_over_pfbp.<s>.step_ratio``   ``sirbp.<s>.step_s / pfbp.<s>.step_s``
     ``sage.<s>.range_rmse_m``, ``sage.<s>.valid_fraction``, ``sage.<s>.sigma_m``   (``"sage"``
                                      only) SAGE range RMSE over valid links, fraction of valid
@@ -76,6 +82,12 @@ Fig. 4a, = 1 − outage over all steps).
 
 Timings are wall times of this process; with several workers on a shared machine they include
 contention. Everything except the timings is identical for a seed whatever the worker count.
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
+Information Processing over Networks 9, 2023.
 """
 
 from __future__ import annotations
@@ -92,38 +104,21 @@ from phyloc.analysis.pcrlb import pcrlb
 from phyloc.config import Recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict
-from phyloc.localization.tracking.edh import run_edh
-from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.tracking.range_models import (
-    STATE_MODELS,
-    RangeModel,
+from phyloc.evaluation.range_scenarios import (
     RangeScenario,
     network_states,
-    paper_prior,
     scenario_network_spec,
     simulate_scenario,
 )
-from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
-from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
+from phyloc.localization import METHODS
+from phyloc.localization.tracking import STATE_MODELS, RangeModel, paper_prior
 from phyloc.parallel import run_tasks
 
-METHODS = ("pfbp", "pfbp_reg", "sirbp", "spbp", "edh")
+FAMILY = "tracking"
+#: The methods of PF-BP §VI, the default of ``experiment.methods``.
+DEFAULT_METHODS = ("pfbp", "pfbp_reg", "sirbp", "spbp", "edh")
 MEASUREMENTS = ("gaussian", "sage")
 SAGE_SIGMA_RULES = ("residual", "zzb")
-_OPTIONS = {
-    "pfbp": PFBPOptions,
-    "pfbp_reg": PFBPOptions,
-    "sirbp": SIRBPOptions,
-    "spbp": SPBPOptions,
-    "edh": PFBPOptions,
-}
-_RUN = {
-    "pfbp": run_pfbp,
-    "pfbp_reg": run_pfbp,
-    "sirbp": run_sirbp,
-    "spbp": run_spbp,
-    "edh": run_edh,
-}
 _UNITS = {"p": "p_m", "v": "v_m_s", "a": "a_m_s2"}
 OUTAGE_GRID_M = np.logspace(-2, 1.5, 141)
 _TIMING_SUFFIXES = (".step_s", ".agent_s", ".step_ratio")
@@ -147,12 +142,12 @@ class TrackingExperimentSpec:
     n_steps : int
         K (40).
     methods : tuple of str
-        From :data:`METHODS`.
+        Registered methods of the ``"tracking"`` family (default :data:`DEFAULT_METHODS`).
     motion, dim, side_m, dt_s, accel_std, sigma_r
         State model, dimension, cube side [m], ΔT [s], σ_a [m/s²], range σ [m] (PF-BP §VI:
         CA, 3, 20, 0.1, 0.15, 0.1).
     sigma_p, accel_init_factor
-        Prior of eq. (31): σ_p [m] (20) and σ_ainit / σ_a (10).
+        Prior of PF-BP eq. (31): σ_p [m] (20) and σ_ainit / σ_a (10).
     report_steps, outage_steps : tuple of int
         Steps k with scalar RMSE figures / outage curves (those > ``n_steps`` are skipped).
     outage_thresholds_m : tuple of float
@@ -173,7 +168,7 @@ class TrackingExperimentSpec:
     )
     runs: int = 200
     n_steps: int = 40
-    methods: tuple = METHODS
+    methods: tuple = DEFAULT_METHODS
     motion: str = "constant_acceleration"
     dim: int = 3
     side_m: float = 20.0
@@ -211,11 +206,12 @@ class TrackingExperimentSpec:
         v.integer("experiment.runs", self.runs, minimum=1)
         K = v.integer("experiment.n_steps", self.n_steps, minimum=1)
         methods = tuple(self.methods)
+        known = METHODS.family(FAMILY)
         if not methods:
-            raise ValidationError("experiment.methods", [], f"at least one of {METHODS}")
+            raise ValidationError("experiment.methods", [], f"at least one of {', '.join(known)}")
         for m in methods:
-            if m not in METHODS:
-                raise ValidationError("experiment.methods", m, f"each one of {', '.join(METHODS)}")
+            if m not in known:
+                raise ValidationError("experiment.methods", m, f"each one of {', '.join(known)}")
         object.__setattr__(self, "methods", methods)
         if self.motion not in STATE_MODELS:
             raise ValidationError("experiment.motion", self.motion, f"one of {STATE_MODELS}")
@@ -251,9 +247,9 @@ class TrackingExperimentSpec:
                 "experiment.method_options", self.method_options, "a table {method = {key = value}}"
             )
         for m in self.method_options:
-            if m not in METHODS:
+            if m not in known:
                 raise ValidationError(
-                    "experiment.method_options", m, f"keys from {', '.join(METHODS)}"
+                    "experiment.method_options", m, f"keys from {', '.join(known)}"
                 )
 
     @classmethod
@@ -270,19 +266,17 @@ def method_options(localization: dict, exp: TrackingExperimentSpec) -> dict:
     """Options object of every method: ``[localization.<m>]`` updated by
     ``experiment.method_options``; unknown keys are errors naming ``localization.<m>.<key>``."""
     localization = dict(localization)
-    check_keys(localization, list(METHODS), "localization")
+    check_keys(localization, list(METHODS.family(FAMILY)), "localization")
     out = {}
     for m in exp.methods:
         raw = localization.get(m, {})
         if not isinstance(raw, dict):
             raise ValidationError(f"localization.{m}", raw, "a table of method options")
         over = exp.method_options.get(m, {})
-        base = {"regularize": True} if m == "pfbp_reg" else {}
+        method = METHODS[m]
         try:
-            out[m] = _OPTIONS[m].from_dict({**base, **raw}, section=f"localization.{m}")
-            out[m] = _OPTIONS[m].from_dict(
-                {**base, **raw, **over}, section=f"experiment.method_options.{m}"
-            )
+            out[m] = method.make_options(raw, section=f"localization.{m}")
+            out[m] = method.make_options({**raw, **over}, section=f"experiment.method_options.{m}")
         except ValidationError as exc:
             if exc.field.startswith(("localization", "experiment")):
                 raise
@@ -350,7 +344,7 @@ def _sage_scenario(exp, scen, system, chan, rspec, rng):
         if first is None:
             first = (lk[ok], rng_m[ok])
         var.append(est.variance_m2[ok] / real.ways**2)
-    states = network_states(net, model)[: K + 1]
+    states = network_states(net, model)[: K + 1]  # the truth, for the errors and the PCRLB
     sc = RangeScenario(
         model=model,
         anchors=np.ascontiguousarray(net.positions[0, anchors]),
@@ -405,26 +399,26 @@ def _task(payload, seed_seq):
     rng = np.random.default_rng(streams[0])
     if exp.measurements == "gaussian":
         sc, info = _gaussian_scenario(exp, scen, rng)
-        track_sc = sc
+        meas = sc.measurements()
     else:
         sc, info = _sage_scenario(exp, scen, *extra, rng)
         model = dataclasses.replace(sc.model, sigma_r=info["sigma_m"])
-        track_sc = dataclasses.replace(sc, model=model)
-    mean0, cov0 = paper_prior(
-        sc,
+        meas = dataclasses.replace(sc.measurements(), model=model)
+    prior = paper_prior(
+        meas,
         np.random.default_rng(streams[1]),
         sigma_p=exp.sigma_p,
         accel_init_factor=exp.accel_init_factor,
     )
     d = exp.dim
-    out = {"scenario": sc, "prior_cov": cov0, "sage": info}
+    out = {"scenario": sc, "prior_cov": prior.cov, "sage": info}
     for s, m in zip(streams[2:], exp.methods, strict=True):
-        res = _RUN[m](track_sc, mean0, cov0, np.random.default_rng(s), options[m])
+        res = METHODS[m].run(meas, prior, np.random.default_rng(s), options[m])
         for b, name in enumerate("pva"[: sc.model.order]):
-            e = res.mean[..., b * d : (b + 1) * d] - sc.states[..., b * d : (b + 1) * d]
+            e = res.estimates[..., b * d : (b + 1) * d] - sc.states[..., b * d : (b + 1) * d]
             out[f"{m}|e_{name}"] = np.linalg.norm(e, axis=-1)  # [K, n_agents]
-        out[f"{m}|step_s"] = res.step_s
-        out[f"{m}|agent_s"] = res.agent_s
+        out[f"{m}|step_s"] = res.timing.step_s
+        out[f"{m}|agent_s"] = res.timing.agent_s
     return out
 
 
@@ -479,7 +473,7 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         "outage_thresholds_m": list(exp.outage_thresholds_m),
         "measurements": exp.measurements,
         "options": {m: dataclasses.asdict(o) for m, o in options.items()},
-        "labels": {"pfbp_reg": "PF-BP reg", "sirbp": "SIR-BP", "spbp": "SP-BP", "edh": "EDH"},
+        "labels": {m: METHODS[m].label for m in exp.methods},
         "timing": "median wall time over all steps of all runs (includes worker contention)",
     }
     if exp.measurements == "sage":
@@ -539,10 +533,9 @@ def _aggregate(keys, results, exp):
             figures[f"{base}.step_s"] = float(
                 np.median(np.concatenate([p[f"{m}|step_s"] for p in parts]))
             )
-            if m != "edh":
-                figures[f"{base}.agent_s"] = float(
-                    np.median(np.concatenate([p[f"{m}|agent_s"] for p in parts]))
-                )
+            agent_s = np.concatenate([p[f"{m}|agent_s"] for p in parts])
+            if not np.all(np.isnan(agent_s)):  # NaN: no distributed form (edh)
+                figures[f"{base}.agent_s"] = float(np.median(agent_s))
         if "sirbp" in exp.methods and "pfbp" in exp.methods:
             figures[f"sirbp_over_pfbp.{tok}.step_ratio"] = (
                 figures[f"sirbp.{tok}.step_s"] / figures[f"pfbp.{tok}.step_s"]

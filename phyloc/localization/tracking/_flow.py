@@ -9,19 +9,35 @@ For a Gaussian prior ``N(m₀, P)`` and a measurement linearized at the current 
     A(λ) = −\\tfrac12 P Hᵀ (λ H P Hᵀ + R)^{-1} H, \\qquad
     b(λ) = (I + 2λA)\\,[(I + λA) P Hᵀ R^{-1} (z − e) + A m₀].
 
-Particles and the mean move by Euler steps ``x ← x + Δ_l ζ(x, λ_l)`` (eqs. (21), (42), (43))
-over exponentially spaced pseudo-times (``Δ_{l+1} = q Δ_l``, ``Σ Δ_l = 1``, q = 1.2). In PF-BP
-only the first ``n_flow`` components (agent ``i``) move; the neighbours' components of the
-stacked state β stay at their particles (eq. (21)).
+Particles and the mean move by Euler steps ``x ← x + Δ_l ζ(x, λ_l)`` (PF-BP eqs. (21), (42),
+(43)) over exponentially spaced pseudo-times (``Δ_{l+1} = q Δ_l``, ``Σ Δ_l = 1``, q = 1.2). In
+PF-BP only the first ``n_flow`` components (agent ``i``) move; the neighbours' components of the
+stacked state β stay at their particles (PF-BP eq. (21)).
 
 Range kernels: measurement ``q`` is ``‖p_a − p_b‖`` with ``p_a`` the ``dim`` components of the
 state at offset ``off_a[q]`` and ``p_b`` those at ``off_b[q]`` or, when ``off_b[q] < 0``, the
 anchor ``anchor_pos[q]``. A zero distance gives a zero Jacobian row (no NaN).
 
-Every numba kernel has a NumPy twin (``*_numpy``) it is tested against.
+The numba kernels are tested against plain-NumPy twins in ``tests/naive_flow.py``.
+:func:`run_flow` is the flow PF-BP and the EDH filter call; :func:`use_flow` swaps in another
+implementation for a block of code (the benchmarks time the NumPy twin that way).
+
+Examples
+--------
+>>> lambdas, steps = lambda_schedule(3, 2.0)
+>>> steps.round(4).tolist(), float(lambdas[-1])
+([0.1429, 0.2857, 0.5714], 1.0)
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
+Information Processing over Networks 9, 2023.
 """
 
 from __future__ import annotations
+
+from contextlib import contextmanager
 
 import numpy as np
 from numba import njit
@@ -120,21 +136,6 @@ def range_linearization(x, off_a, off_b, anchor_pos, dim):
     return H, h
 
 
-def range_flow_numpy(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flow, lambdas, steps):
-    """NumPy twin of :func:`range_flow_kernel` (returns new arrays)."""
-    return edh_flow(
-        X,
-        mean,
-        P,
-        lambda x: range_linearization(x, off_a, off_b, anchor_pos, dim),
-        z,
-        np.diag(r_var),
-        lambdas,
-        steps,
-        n_flow,
-    )
-
-
 @njit(cache=True)
 def _apply_h(U, off_a, off_b, v, out):
     """``out = H v`` for the sparse range Jacobian (row ``q``: ``+u_q`` at ``off_a[q]``,
@@ -194,8 +195,9 @@ def range_flow_kernel(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flo
     ``n × n`` is formed: with ``T = −½ (P Hᵀ)_{[:n_flow]} S^{-1}`` (``S = λ H P Hᵀ + R``) the
     drift of the moving components is ``A_f x = T (H x)``, and ``A v = −½ P Hᵀ S^{-1} H v`` for
     the vectors of ``b(λ)``. Per λ-step this costs ``O(n·L·dim + L³ + M·L·(dim + n_flow))``
-    instead of the dense ``O(n²·L + M·n_flow·n)`` of the NumPy twin
-    (:func:`range_flow_numpy`), which it equals to rounding.
+    instead of the dense ``O(n²·L + M·n_flow·n)`` of :func:`edh_flow` with
+    :func:`range_linearization` (the NumPy twin ``range_flow_numpy`` of ``tests/naive_flow.py``),
+    which it equals to rounding.
     """
     M, n = X.shape
     L = z.size
@@ -306,7 +308,7 @@ def range_flow_kernel(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flo
 
 @njit(cache=True)
 def paired_range_loglik_kernel(x, y, z, inv_var, out):
-    """Accumulate ``out[m] += −½ (z − ‖x_m − y_m‖)² / σ²`` (paired particles, eq. (22)).
+    """Accumulate ``out[m] += −½ (z − ‖x_m − y_m‖)² / σ²`` (paired particles, PF-BP eq. (22)).
 
     ``x [M, dim]``; ``y [My, dim]`` with ``My == M`` (particle ``m`` of the partner) or
     ``My == 1`` (an anchor).
@@ -321,12 +323,6 @@ def paired_range_loglik_kernel(x, y, z, inv_var, out):
             d2 += diff * diff
         r = z - np.sqrt(d2)
         out[m] += -0.5 * r * r * inv_var
-
-
-def paired_range_loglik_numpy(x, y, z, inv_var):
-    """NumPy twin of :func:`paired_range_loglik_kernel` (returns the increment)."""
-    d = np.linalg.norm(x - y, axis=1)
-    return -0.5 * (z - d) ** 2 * inv_var
 
 
 def gaussian_logpdf(X, mean, cov):
@@ -357,7 +353,7 @@ def invertible_flow_log_weights(X0, X1, mean0, cov0, loglik1):
     ``log w = log p(x₁) − log p(x₀) + log f(z | x₁)``. The flow Jacobian is common to all
     particles for the EDH (linearized at the mean), so it cancels on normalization. The prior
     density ``p`` is the Gaussian ``N(mean0, cov0)`` the flow was derived for: the transition
-    density ``f(x | x^{(k−1)})`` of eq. (22) is singular for the CV/CA models (``Q`` has rank
+    density ``f(x | x^{(k−1)})`` of PF-BP eq. (22) is singular for the CV/CA models (``Q`` has rank
     ``dim``), so it cannot be evaluated at the flowed particles.
     """
     return gaussian_logpdf(X1, mean0, cov0) - gaussian_logpdf(X0, mean0, cov0) + loglik1
@@ -385,3 +381,85 @@ def ukf_covariance_update(mean, P, off_a, off_b, anchor_pos, r_var, dim, n_out):
     Pxz = w * dx.T @ dz
     out = P[:n_out, :n_out] - Pxz @ np.linalg.solve(Pzz, Pxz.T)
     return 0.5 * (out + out.T)
+
+
+#: The flow :func:`run_flow` uses instead of :func:`range_flow_kernel` (see :func:`use_flow`).
+_flow_override = None
+
+
+@contextmanager
+def use_flow(flow):
+    """Run PF-BP and the EDH filter with another range flow inside a ``with`` block.
+
+    Parameters
+    ----------
+    flow : callable or None
+        ``flow(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flow, lambdas, steps)
+        -> (X1, mean1)`` returning new arrays (the signature of :func:`range_flow_kernel`);
+        ``None``: the numba kernel. The benchmarks pass the NumPy twin ``range_flow_numpy`` of
+        ``tests/naive_flow.py`` to time it; tests use it to compare whole tracks.
+
+    Examples
+    --------
+    >>> calls = []
+    >>> def traced(X, mean, *args):
+    ...     calls.append(X.shape)
+    ...     return X.copy(), mean.copy()
+    >>> with use_flow(traced):
+    ...     _ = run_flow(np.zeros((4, 3)), np.zeros(3), np.eye(3), np.zeros(1, np.int64),
+    ...                  np.full(1, -1), np.ones((1, 3)), np.ones(1), np.ones(1), 3, 3,
+    ...                  *lambda_schedule(2))
+    >>> calls
+    [(4, 3)]
+    """
+    global _flow_override
+    if flow is not None and not callable(flow):
+        from phyloc.errors import ValidationError
+
+        raise ValidationError("flow", type(flow).__name__, "a callable or None")
+    previous, _flow_override = _flow_override, flow
+    try:
+        yield
+    finally:
+        _flow_override = previous
+
+
+def run_flow(X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flow, lambdas, steps):
+    """Flow copies of particles ``X [M, n]`` and ``mean [n]`` (PF-BP eqs. (21), (23)–(27)).
+
+    Calls :func:`range_flow_kernel` on copies, or the flow installed by :func:`use_flow`.
+    Returns ``X1 [M, n]``, ``mean1 [n]``.
+    """
+    if _flow_override is not None:
+        return _flow_override(
+            X, mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_flow, lambdas, steps
+        )
+    X1 = np.array(X, dtype=np.float64, order="C")
+    m1 = np.array(mean, dtype=np.float64)
+    range_flow_kernel(
+        X1,
+        m1,
+        np.ascontiguousarray(P),
+        off_a,
+        off_b,
+        anchor_pos,
+        z,
+        r_var,
+        dim,
+        n_flow,
+        lambdas,
+        steps,
+    )
+    return X1, m1
+
+
+def stacked_loglik(B, off_a, off_b, anchor_pos, z, inv_var, dim):
+    """``Σ_q log f(z_q | β^m)`` for stacked particles ``B [M, n]`` (paired, PF-BP eq. (22))."""
+    out = np.zeros(B.shape[0])
+    for q in range(z.size):
+        a = off_a[q]
+        x = np.ascontiguousarray(B[:, a : a + dim])
+        b = off_b[q]
+        y = anchor_pos[q : q + 1] if b < 0 else np.ascontiguousarray(B[:, b : b + dim])
+        paired_range_loglik_kernel(x, y, float(z[q]), inv_var, out)
+    return out

@@ -1,4 +1,4 @@
-"""Range-level models of the PF-BP paper: agent states, Gaussian range measurements, scenarios.
+"""Range-level models of the PF-BP paper: agent states, range measurements, Gaussian priors.
 
 The state of agent ``i`` at time ``k`` is ``x_i = [p_i; v_i; a_i]`` (constant acceleration, CA,
 PF-BP eqs. (1)–(3)), ``[p_i; v_i]`` (constant velocity, CV) or ``p_i`` (static), each block a
@@ -7,17 +7,25 @@ PF-BP eqs. (1)–(3)), ``[p_i; v_i]`` (constant velocity, CV) or ``p_i`` (static
 ``Q = 0``).
 
 A range measurement (PF-BP eq. (8)) is ``z_ij = ‖p_j − p_i‖ + n_ij``, ``n_ij ~ N(0, σ²)`` iid.
-A scenario stores them densely: ``z[k−1, i, j]`` is the measurement agent ``i`` made of node
-``j`` at time ``k`` (NaN when ``i`` and ``j`` are not connected, i.e. farther than ``r_max``).
-Nodes are ordered agents first, anchors last (as in :class:`~phyloc.network.Network`), so
-columns ``n_agents …`` are anchors. Both agents of a connected pair measure, each with its own
-noise: ``z_ij ≠ z_ji``.
+:class:`RangeMeasurements` stores them densely: ``z[k−1, i, j]`` is the measurement agent ``i``
+made of node ``j`` at time ``k`` (NaN when ``i`` and ``j`` are not connected). Nodes are ordered
+agents first, anchors last (as in :class:`~phyloc.network.Network`), so columns ``n_agents …``
+are anchors, whose positions are known. Both agents of a connected pair measure, each with its
+own noise: ``z_ij ≠ z_ji``. The measurements carry no truth; simulated ones come from
+:func:`phyloc.evaluation.range_scenarios.simulate_scenario`. :class:`GaussianPrior` is the
+prior of every tracker (:func:`paper_prior`: PF-BP eq. (31)).
 
 Factors (PF-BP §V-A): *distributed* — agent ``i`` uses only its own row ``z[i, :]`` (``f_ij ≠
-f_ji``, eq. (17)); *centralized* — agent ``i`` also uses ``z[j, i]`` of every agent ``j``
-(``f_ij = f_ji``, eq. (18)). :func:`agent_measurements` lists the measurements of one agent
-under either rule; :func:`all_measurements` lists every measurement (the joint likelihood used by
-the EDH filter and the PCRLB).
+f_ji``, PF-BP eq. (17)); *centralized* — agent ``i`` also uses ``z[j, i]`` of every agent ``j``
+(``f_ij = f_ji``, PF-BP eq. (18)). :func:`agent_measurements` lists the measurements of one
+agent under either rule; :func:`all_measurements` lists every measurement (the joint likelihood
+used by the EDH filter).
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
+Information Processing over Networks 9, 2023.
 """
 
 from __future__ import annotations
@@ -52,7 +60,7 @@ class RangeModel:
     accel_std : float
         σ_a [m/s²], >= 0 (CV/CA). Default 0.15 m/s².
     sigma_r : float
-        Range noise standard deviation σ [m], > 0 (eq. (8)). Default 0.1 m.
+        Range noise standard deviation σ [m], > 0 (PF-BP eq. (8)). Default 0.1 m.
 
     Examples
     --------
@@ -115,7 +123,7 @@ class RangeModel:
         return np.diag(np.repeat(diag, self.dim))
 
     def predict_particles(self, X: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        """Draw ``x^{(k)} = F x^{(k−1)} + G u`` for particles ``X [..., N_D]`` (eq. (1))."""
+        """Draw ``x^{(k)} = F x^{(k−1)} + G u`` for particles ``X [..., N_D]`` (PF-BP eq. (1))."""
         F, _ = self.matrices()
         out = X @ F.T
         if self.motion != "static" and self.accel_std > 0:
@@ -130,236 +138,157 @@ class RangeModel:
 
 
 @dataclass(frozen=True, eq=False)
-class RangeScenario:
-    """True trajectories and range measurements of one realization.
+class RangeMeasurements:
+    """Range measurements of a network over time: what the trackers see (no truth).
 
-    Time ``k = 1 … K`` is stored at index ``k − 1``; ``initial_states`` is ``x^{(0)}``.
+    Time ``k = 1 … K`` is stored at index ``k − 1``. Problem sizes come from ``z``: ``K``,
+    ``n_agents`` and ``n_agents + n_anchors``.
 
     Parameters
     ----------
     model : RangeModel
+        State model and range noise σ the trackers assume.
     anchors : [n_anchors, dim] float64
-        Anchor positions [m].
-    initial_states : [n_agents, N_D] float64
-        ``x_i^{(0)}``.
-    states : [K, n_agents, N_D] float64
-        ``x_i^{(k)}``.
+        Known anchor positions [m].
     z : [K, n_agents, n_agents + n_anchors] float64
-        ``z[k−1, i, j]``: range agent ``i`` measured to node ``j`` [m]; NaN where absent (and on
-        the diagonal).
-    comm_range_m : float
-        r_max [m] (``inf``: fully connected).
+        ``z[k−1, i, j]``: range agent ``i`` measured to node ``j`` at time ``k`` [m]
+        (PF-BP eq. (8)); NaN where absent (and on the diagonal). Nodes: agents first, anchors last.
+
+    Examples
+    --------
+    >>> z = np.full((2, 1, 2), np.nan)
+    >>> z[:, 0, 1] = 5.0
+    >>> meas = RangeMeasurements(RangeModel("static", 2), np.zeros((1, 2)), z)
+    >>> meas.n_steps, meas.n_agents, meas.n_anchors
+    (2, 1, 1)
     """
 
     model: RangeModel
     anchors: np.ndarray
-    initial_states: np.ndarray
-    states: np.ndarray
     z: np.ndarray
-    comm_range_m: float = np.inf
+
+    def __post_init__(self):
+        if not isinstance(self.model, RangeModel):
+            raise ValidationError("model", type(self.model).__name__, "must be a RangeModel")
+        dim = self.model.dim
+        anchors = v.finite_array("anchors", np.reshape(self.anchors, (-1, dim)), ndim=2)
+        if np.shape(self.anchors) not in (anchors.shape, (0,)):
+            raise ValidationError(
+                "anchors", f"array of shape {np.shape(self.anchors)}", f"must be (n_anchors, {dim})"
+            )
+        try:
+            z = np.asarray(self.z, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValidationError("z", "<array>", "must convert to float64") from None
+        if z.ndim != 3 or z.shape[2] != z.shape[1] + anchors.shape[0] or z.shape[1] < 1:
+            raise ValidationError(
+                "z",
+                f"array of shape {z.shape}",
+                f"must be (K, n_agents, n_agents + n_anchors) with n_anchors = {anchors.shape[0]}",
+            )
+        if np.any(np.isinf(z)):
+            raise ValidationError("z", "inf", "ranges must be finite or NaN (not measured)")
+        object.__setattr__(self, "anchors", anchors)
+        object.__setattr__(self, "z", z)
 
     @property
     def n_agents(self) -> int:
-        return self.states.shape[1]
+        """Number of agents (rows of ``z``)."""
+        return self.z.shape[1]
 
     @property
     def n_anchors(self) -> int:
+        """Number of anchors."""
         return self.anchors.shape[0]
 
     @property
     def n_steps(self) -> int:
-        return self.states.shape[0]
-
-    def positions(self) -> np.ndarray:
-        """True agent positions ``[K, n_agents, dim]``."""
-        return self.states[..., : self.model.dim]
+        """Number of time steps K."""
+        return self.z.shape[0]
 
 
 @dataclass(frozen=True, eq=False)
-class TrackResult:
-    """Estimates of a range-level tracker (PF-BP, SIR-BP, EDH).
+class GaussianPrior:
+    """Independent Gaussian priors of the agent states at time 0, ``N(mean_i, cov_i)``.
 
-    Attributes
+    Parameters
     ----------
-    mean : [K, n_agents, N_D] float64
-        MMSE estimates (eq. (20)).
-    cov : [K, n_agents, N_D, N_D] float64
-        Belief covariances (UKF, eq. (30), for the flow methods; sample covariance for SIR-BP).
-    step_s : [K] float64
-        Wall time per time step (joint processing) [s].
-    agent_s : [K] float64
-        Mean wall time per agent and time step (distributed processing) [s]; for the
-        centralized EDH filter the joint time divided by the number of agents.
+    mean : [n_agents, N_D] float64
+        ``x̄_i^{(0)}``.
+    cov : [n_agents, N_D, N_D] float64
+        ``P_i^{(0)}`` (symmetric PSD; a singular block is jittered where it is factorized).
     label : str
+        Describes the prior in results (e.g. ``"PF-BP eq. (31)"``).
     """
 
     mean: np.ndarray
     cov: np.ndarray
-    step_s: np.ndarray
-    agent_s: np.ndarray
     label: str = ""
 
-
-def state_errors(result: TrackResult, scenario: RangeScenario) -> dict[str, np.ndarray]:
-    """RMSE per time step of position, velocity, acceleration (PF-BP §VI ``RMSE_p/v/a``).
-
-    Returns a dict with keys ``"p"``, ``"v"``, ``"a"`` (those the model has), each ``[K]``
-    = ``sqrt(mean_i ‖x̂_i − x_i‖²)`` over the block.
-    """
-    d = scenario.model.dim
-    out = {}
-    for b, name in enumerate("pva"[: scenario.model.order]):
-        e = result.mean[..., b * d : (b + 1) * d] - scenario.states[..., b * d : (b + 1) * d]
-        out[name] = np.sqrt(np.mean(np.sum(e * e, axis=-1), axis=-1))
-    return out
-
-
-def network_states(network, model: RangeModel) -> np.ndarray:
-    """Agent states ``[n_snapshots, n_agents, N_D]`` of a realized network.
-
-    Velocity and acceleration come from the network when it carries them, zeros otherwise.
-    """
-    agents = ~np.asarray(network.is_anchor)
-    blocks = [network.positions, network.velocities, network.accelerations][: model.order]
-    blocks = [np.zeros_like(network.positions) if b is None else b for b in blocks]
-    return np.concatenate([b[:, agents] for b in blocks], axis=-1)
-
-
-def simulate_scenario(
-    network,
-    model: RangeModel,
-    rng: np.random.Generator,
-    *,
-    comm_range_m: float | None = None,
-    n_steps: int | None = None,
-) -> RangeScenario:
-    """Range measurements (PF-BP eq. (8)) along the trajectories of a realized network.
-
-    Snapshot 0 of the network is ``x^{(0)}`` (the prior time, no measurement); snapshots
-    ``1 … K`` carry measurements. Agents ``i`` and node ``j`` are connected at time ``k`` when
-    ``‖p_i − p_j‖ <= r_max``; then agent ``i`` measures ``z_ij`` and (if ``j`` is an agent) ``j``
-    measures ``z_ji`` with independent noise.
-
-    Parameters
-    ----------
-    network : phyloc.network.Network
-        From :func:`phyloc.network.make_network` (agents first, anchors last), at least
-        ``n_steps + 1`` snapshots. Its own ``comm_range_m`` is ignored.
-    model : RangeModel
-        ``dim`` must match the network.
-    rng : numpy.random.Generator
-        Draws the noise ``[K, n_agents, n_nodes]`` in one block.
-    comm_range_m : float, optional
-        r_max [m]; ``None``: fully connected.
-    n_steps : int, optional
-        K; default ``network.n_snapshots − 1``.
-
-    Returns
-    -------
-    RangeScenario
-    """
-    if not isinstance(model, RangeModel):
-        raise ValidationError("model", type(model).__name__, "must be a RangeModel")
-    if not isinstance(rng, np.random.Generator):
-        raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator")
-    pos = np.asarray(network.positions)
-    if pos.shape[2] != model.dim:
-        raise ValidationError("model.dim", model.dim, f"must match the network ({pos.shape[2]})")
-    K = pos.shape[0] - 1 if n_steps is None else v.integer("n_steps", n_steps, minimum=1)
-    if K < 1 or K + 1 > pos.shape[0]:
-        raise ValidationError(
-            "n_steps", K, f"needs 1 <= n_steps <= n_snapshots − 1 = {pos.shape[0] - 1}"
-        )
-    r_max = np.inf if comm_range_m is None else v.positive("comm_range_m", comm_range_m)
-    is_anchor = np.asarray(network.is_anchor)
-    agents = np.flatnonzero(~is_anchor)
-    order = np.r_[agents, np.flatnonzero(is_anchor)]
-    states = network_states(network, model)[: K + 1]
-    p = pos[1 : K + 1][:, order]  # [K, n_nodes, dim], agents first
-    n_ag = agents.size
-    d = np.linalg.norm(p[:, :n_ag, None, :] - p[:, None, :, :], axis=-1)  # [K, n_ag, n_nodes]
-    noise = rng.normal(0.0, model.sigma_r, size=d.shape)
-    z = d + noise
-    connected = d <= r_max
-    connected[:, np.arange(n_ag), np.arange(n_ag)] = False
-    z[~connected] = np.nan
-    return RangeScenario(
-        model=model,
-        anchors=np.ascontiguousarray(pos[0, is_anchor]),
-        initial_states=states[0],
-        states=states[1:],
-        z=z,
-        comm_range_m=float(r_max),
-    )
-
-
-def scenario_network_spec(
-    n_agents: int = 5,
-    n_steps: int = 40,
-    *,
-    motion: str = "constant_acceleration",
-    dim: int = 3,
-    side_m: float = 20.0,
-    dt_s: float = 0.1,
-    accel_std: float = 0.15,
-):
-    """The network of PF-BP §VI Scenario I (5 agents) / II (20 agents).
-
-    Agents uniform in a ``side_m`` cube (square in 2-D), 9 anchors at its corners and centre
-    (``"corners_center"``; 5 in 2-D), initial velocity a unit vector toward the centre,
-    zero initial acceleration, CA (or CV) motion with ``ΔT``, ``σ_a``; ``n_steps + 1``
-    snapshots (snapshot 0 is ``x^{(0)}``). A static model gives a static network.
-    """
-    from phyloc.network import MotionSpec, NetworkSpec
-
-    v.choice("motion", motion, STATE_MODELS)
-    ms = MotionSpec(
-        model=motion,
-        n_snapshots=n_steps + 1,
-        dt_s=dt_s,
-        accel_std=accel_std,
-        initial_velocity="toward_center",
-        initial_speed_m_s=1.0,
-    )
-    return NetworkSpec(
-        n_agents=n_agents,
-        dim=dim,
-        region_m=(side_m,) * dim,
-        anchors=2**dim + 1,
-        anchor_layout="corners_center",
-        on_isolated="allow",
-        motion=ms,
-    )
+    def __post_init__(self):
+        mean = v.finite_array("prior.mean", self.mean, ndim=2)
+        cov = v.finite_array("prior.cov", self.cov, ndim=3)
+        if cov.shape != (*mean.shape, mean.shape[1]):
+            shape = (*mean.shape, mean.shape[1])
+            raise ValidationError("prior.cov", f"array of shape {cov.shape}", f"must be {shape}")
+        object.__setattr__(self, "mean", mean)
+        object.__setattr__(self, "cov", cov)
 
 
 def paper_prior(
-    scenario: RangeScenario,
+    measurements: RangeMeasurements,
     rng: np.random.Generator,
     *,
     sigma_p: float = 20.0,
     region_m=None,
     accel_init_factor: float = 10.0,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Gaussian prior of ``x^{(0)}`` of PF-BP eq. (31).
+) -> GaussianPrior:
+    """Gaussian prior of ``x^{(0)}`` of PF-BP eq. (31); it uses no truth.
 
     ``P_i^{(0)} = diag(σ_p² I, ΔT² σ_ainit² I, σ_ainit² I)`` with ``σ_ainit = 10 σ_a``; the
     velocity and acceleration means are drawn from ``N(0, P^{(0)})`` blocks, the position mean
     uniformly in the region (default: the bounding box of the anchors). Static model: only the
     position block.
 
+    Parameters
+    ----------
+    measurements : RangeMeasurements
+        Gives the model, the number of agents and the anchors.
+    rng : numpy.random.Generator
+        Draws the positions ``[n_agents, dim]`` then the other blocks.
+    sigma_p : float
+        σ_p [m] (PF-BP §VI: 20 m).
+    region_m : float or [dim] float, optional
+        Region ``[0, region_m]`` of the position means (default: the anchors' bounding box).
+    accel_init_factor : float
+        σ_ainit / σ_a (10).
+
     Returns
     -------
-    mean : [n_agents, N_D] float64
-    cov : [n_agents, N_D, N_D] float64
+    GaussianPrior
+        ``mean [n_agents, N_D]``, ``cov [n_agents, N_D, N_D]``.
+
+    Examples
+    --------
+    >>> z = np.full((1, 2, 3), np.nan)
+    >>> meas = RangeMeasurements(RangeModel(dim=2), np.zeros((1, 2)), z)
+    >>> paper_prior(meas, np.random.default_rng(0)).cov.shape
+    (2, 6, 6)
     """
-    m = scenario.model
+    if not isinstance(measurements, RangeMeasurements):
+        raise ValidationError(
+            "measurements", type(measurements).__name__, "must be a RangeMeasurements"
+        )
+    m = measurements.model
     sp = v.positive("sigma_p", sigma_p)
     sai = v.positive("accel_init_factor", accel_init_factor, allow_zero=True) * m.accel_std
     var = [sp**2, (m.dt_s * sai) ** 2, sai**2][: m.order]
     diag = np.repeat(var, m.dim)
-    n = scenario.n_agents
+    n = measurements.n_agents
     if region_m is None:
-        lo, hi = scenario.anchors.min(axis=0), scenario.anchors.max(axis=0)
+        if measurements.n_anchors == 0:
+            raise ValidationError("region_m", None, "required when there are no anchors")
+        lo, hi = measurements.anchors.min(axis=0), measurements.anchors.max(axis=0)
     else:
         lo, hi = np.zeros(m.dim), np.asarray(region_m, dtype=float) * np.ones(m.dim)
     mean = np.zeros((n, m.state_dim))
@@ -367,7 +296,7 @@ def paper_prior(
     if m.order > 1:
         mean[:, m.dim :] = rng.normal(size=(n, m.state_dim - m.dim)) * np.sqrt(diag[m.dim :])
     cov = np.repeat(np.diag(diag)[None], n, axis=0)
-    return mean, cov
+    return GaussianPrior(mean, cov, label="PF-BP eq. (31)")
 
 
 def agent_measurements(z_k: np.ndarray, agent: int, factors: str = "distributed"):
@@ -376,11 +305,11 @@ def agent_measurements(z_k: np.ndarray, agent: int, factors: str = "distributed"
     Parameters
     ----------
     z_k : [n_agents, n_nodes] float64
-        One time step of :attr:`RangeScenario.z`.
+        One time step of :attr:`RangeMeasurements.z`.
     agent : int
     factors : {"distributed", "centralized"}
-        Distributed: ``z[agent, j]`` only (eq. (17)); centralized: also ``z[j, agent]`` of every
-        agent ``j`` (eq. (18)).
+        Distributed: ``z[agent, j]`` only (PF-BP eq. (17)); centralized: also ``z[j, agent]``
+        of every agent ``j`` (PF-BP eq. (18)).
 
     Returns
     -------
@@ -452,20 +381,20 @@ def sample_gaussian(mean: np.ndarray, cov: np.ndarray, n: int, rng: np.random.Ge
     return mean[:, None, :] + np.einsum("aij,anj->ani", L, w)
 
 
-def check_prior(scenario: RangeScenario, prior_mean, prior_cov):
-    """Validate a per-agent Gaussian prior against a scenario; returns float64 copies."""
-    if not isinstance(scenario, RangeScenario):
-        raise ValidationError("scenario", type(scenario).__name__, "must be a RangeScenario")
-    n, nd = scenario.n_agents, scenario.model.state_dim
-    mean = v.finite_array("prior_mean", prior_mean, ndim=2)
-    cov = v.finite_array("prior_cov", prior_cov, ndim=3)
-    if mean.shape != (n, nd):
-        raise ValidationError("prior_mean", f"array of shape {mean.shape}", f"must be ({n}, {nd})")
-    if cov.shape != (n, nd, nd):
+def check_inputs(measurements, prior):
+    """Validate a tracker's measurements and prior; returns float64 copies of the prior."""
+    if not isinstance(measurements, RangeMeasurements):
         raise ValidationError(
-            "prior_cov", f"array of shape {cov.shape}", f"must be ({n}, {nd}, {nd})"
+            "measurements", type(measurements).__name__, "must be a RangeMeasurements"
         )
-    return mean.copy(), cov.copy()
+    if not isinstance(prior, GaussianPrior):
+        raise ValidationError("prior", type(prior).__name__, "must be a GaussianPrior")
+    n, nd = measurements.n_agents, measurements.model.state_dim
+    if prior.mean.shape != (n, nd):
+        raise ValidationError(
+            "prior.mean", f"array of shape {prior.mean.shape}", f"must be ({n}, {nd})"
+        )
+    return prior.mean.copy(), prior.cov.copy()
 
 
 def check_run_args(options, options_cls, rng, *, rng_required: bool = True):

@@ -1,17 +1,24 @@
 """Bootstrap-particle belief propagation (SIR-BP), PF-BP §V-B.
 
 Every agent holds ``M`` equally weighted particles. Per time step the particles are predicted by
-the motion model (the message η of eq. (15)); then, for ``u = 1 … U`` message-passing iterations
-with all beliefs updated in parallel (extrinsic information approximated by beliefs, eq. (19)),
-the predicted particles of agent ``i`` are weighted by the anchor messages (eq. (16)) and the
-cooperative messages (eq. (17), or (18) with centralized factors), resampled systematically and
-optionally regularized by the kernel of eq. (32).
+the motion model (the message η of PF-BP eq. (15)); then, for ``u = 1 … U`` message-passing
+iterations with all beliefs updated in parallel (extrinsic information approximated by beliefs,
+PF-BP eq. (19)), the predicted particles of agent ``i`` are weighted by the anchor messages
+(PF-BP eq. (16)) and the cooperative messages (PF-BP eq. (17), or PF-BP eq. (18) with
+centralized factors), resampled systematically and optionally regularized by the kernel of
+PF-BP eq. (32).
 
 The cooperative message at particle ``m`` is estimated with one particle of the neighbour's
 belief, ``ν_j(x_i^m) ≈ f(z_ij | x_i^m, x_j^m)`` (neighbour particles randomly permuted after
-resampling), which keeps the cost O(M) per link as in eq. (22), instead of the O(M²) sum over all
-neighbour particles. The estimate is the sample mean (eq. (20)); ``cov`` is the sample
-covariance.
+resampling), which keeps the cost O(M) per link as in PF-BP eq. (22), instead of the O(M²) sum
+over all neighbour particles. The estimate is the sample mean (PF-BP eq. (20)); the covariance
+is the sample covariance.
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
+Information Processing over Networks 9, 2023.
 """
 
 from __future__ import annotations
@@ -26,13 +33,14 @@ from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
 from phyloc.localization.particles import regularize, resample_permute
+from phyloc.localization.results import Result, Timing
 from phyloc.localization.tracking import _flow
 from phyloc.localization.tracking.range_models import (
     FACTORS,
-    RangeScenario,
-    TrackResult,
+    GaussianPrior,
+    RangeMeasurements,
     agent_measurements,
-    check_prior,
+    check_inputs,
     check_run_args,
     sample_gaussian,
 )
@@ -50,7 +58,7 @@ class SIRBPOptions:
         U.
     factors : {"distributed", "centralized"}
     regularize : bool
-        Kernel of eq. (32) after resampling.
+        Kernel of PF-BP eq. (32) after resampling.
     reg_std_vel, reg_std_acc : float
         σ_r,vel [m/s], σ_r,acc [m/s²].
     uniform_positions : bool
@@ -82,63 +90,77 @@ class SIRBPOptions:
 
 
 def run_sirbp(
-    scenario: RangeScenario,
-    prior_mean: np.ndarray,
-    prior_cov: np.ndarray,
+    measurements: RangeMeasurements,
+    prior: GaussianPrior,
     rng: np.random.Generator,
     options: SIRBPOptions | None = None,
-) -> TrackResult:
-    """Track all agents with SIR-BP (PF-BP §V-B).
+) -> Result:
+    """Track all agents with SIR-BP (PF-BP §V-B); registered as ``sirbp``.
 
     Parameters
     ----------
-    scenario : RangeScenario
-    prior_mean : [n_agents, N_D] float64
-    prior_cov : [n_agents, N_D, N_D] float64
+    measurements : RangeMeasurements
+    prior : GaussianPrior
     rng : numpy.random.Generator
     options : SIRBPOptions, optional
 
     Returns
     -------
-    TrackResult
+    Result
+        ``estimates [K, n_agents, N_D]`` (sample means), ``covariances`` (sample covariances),
+        the final ``particles [n_agents, M, N_D]`` with uniform ``log_weights``;
+        ``timing.agent_s = step_s / n_agents``, ``agent_iterations = K · U · n_agents``.
+
+    Examples
+    --------
+    >>> from phyloc.localization.tracking import GaussianPrior, RangeMeasurements, RangeModel
+    >>> z = np.full((1, 1, 4), np.nan)
+    >>> z[:, 0, 1:] = [5.0, 5.0, 5.0]
+    >>> anchors = np.array([[0.0, 0.0], [8.0, 0.0], [0.0, 8.0]])
+    >>> meas = RangeMeasurements(RangeModel("static", 2), anchors, z)
+    >>> prior = GaussianPrior(np.array([[3.0, 3.0]]), np.eye(2)[None] * 4.0)
+    >>> res = run_sirbp(meas, prior, np.random.default_rng(0), SIRBPOptions(n_particles=1000))
+    >>> res.estimates.shape
+    (1, 1, 2)
     """
+    t_start = time.perf_counter()
     opt = check_run_args(options, SIRBPOptions, rng)
-    mean0, cov0 = check_prior(scenario, prior_mean, prior_cov)
-    model = scenario.model
+    mean0, cov0 = check_inputs(measurements, prior)
+    model = measurements.model
     dim, nd, n_ag, M, K = (
         model.dim,
         model.state_dim,
-        scenario.n_agents,
+        measurements.n_agents,
         opt.n_particles,
-        scenario.n_steps,
+        measurements.n_steps,
     )
     inv_var = 1.0 / model.sigma_r**2
     Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc) if opt.regularize else None
 
     X = sample_gaussian(mean0, cov0, M, rng)
-    if opt.uniform_positions and scenario.n_anchors > 0:
-        lo, hi = scenario.anchors.min(axis=0), scenario.anchors.max(axis=0)
+    if opt.uniform_positions and measurements.n_anchors > 0:
+        lo, hi = measurements.anchors.min(axis=0), measurements.anchors.max(axis=0)
         X[..., :dim] = rng.uniform(lo, hi, size=(n_ag, M, dim))
     out_mean = np.empty((K, n_ag, nd))
     out_cov = np.empty((K, n_ag, nd, nd))
     step_s = np.empty(K)
     for k in range(K):
         t0 = time.perf_counter()
-        X0 = model.predict_particles(X, rng)  # η, eq. (15)
+        X0 = model.predict_particles(X, rng)  # η, PF-BP eq. (15)
         pos0 = np.ascontiguousarray(X0[..., :dim])
         chi_pos = pos0
         chi = X0
         for _u in range(opt.n_iterations):
             new_chi = np.empty_like(chi)
             for i in range(n_ag):
-                rx, tx, zz, _ = agent_measurements(scenario.z[k], i, opt.factors)
+                rx, tx, zz, _ = agent_measurements(measurements.z[k], i, opt.factors)
                 lw = np.zeros(M)
                 for a, b, zq in zip(rx, tx, zz, strict=True):
                     other = b if a == i else a  # the node that is not i
                     if other >= n_ag:
-                        y = scenario.anchors[other - n_ag][None]  # eq. (16)
+                        y = measurements.anchors[other - n_ag][None]  # PF-BP eq. (16)
                     else:
-                        y = chi_pos[other]  # belief of j at u − 1, eqs. (17)–(19)
+                        y = chi_pos[other]  # belief of j at u − 1, PF-BP eqs. (17)–(19)
                     _flow.paired_range_loglik_kernel(pos0[i], y, float(zq), inv_var, lw)
                 xi = resample_permute(X0[i], lw, rng) if zz.size else X0[i]
                 if Sr is not None:
@@ -151,4 +173,14 @@ def run_sirbp(
         dev = X - out_mean[k][:, None, :]
         out_cov[k] = np.einsum("ami,amj->aij", dev, dev) / M
         step_s[k] = time.perf_counter() - t0
-    return TrackResult(out_mean, out_cov, step_s, step_s / n_ag, label="sirbp")
+    timing = Timing(
+        time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
+    )
+    return Result(
+        out_mean,
+        out_cov,
+        timing,
+        particles=X,
+        log_weights=np.full((n_ag, M), -np.log(M)),
+        label="sirbp",
+    )

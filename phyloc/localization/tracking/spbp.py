@@ -1,16 +1,16 @@
 """Sigma-point belief propagation (SP-BP), the Gaussian baseline of the PF-BP paper.
 
-After Meyer, Hlinka, Hlawatsch, "Sigma point belief propagation", IEEE Signal Process. Lett.
-21(2), 2014. Every agent ``i`` holds a Gaussian belief ``N(x̂_i, P_i)``. Per time step:
+After Meyer, Hlinka, Hlawatsch, "Sigma point belief propagation" (SP-BP). Every agent ``i``
+holds a Gaussian belief ``N(x̂_i, P_i)``. Per time step:
 
 1. predict by the linear motion model (PF-BP eqs. (1), (29)): ``x̂_i ← F x̂_i``,
    ``P_i ← F P_i Fᵀ + Q``;
 2. for ``u = 1 … U`` message-passing iterations, all beliefs in parallel (the schedule of
-   :func:`~phyloc.localization.tracking.pfbp.run_pfbp`, extrinsic information approximated by beliefs):
-   stack the agent's *predicted* state with its neighbours' beliefs of iteration ``u − 1`` into
-   β with mean ``[x̂_i; x̂_j …]`` and block-diagonal covariance ``P̃_i`` (as PF-BP eq. (28));
-   the message product and marginalization are one unscented update of β by the agent's range
-   measurements, of which the agent's block is kept:
+   :func:`~phyloc.localization.tracking.pfbp.run_pfbp`, extrinsic information approximated by
+   beliefs): stack the agent's *predicted* state with its neighbours' beliefs of iteration
+   ``u − 1`` into β with mean ``[x̂_i; x̂_j …]`` and block-diagonal covariance ``P̃_i`` (as
+   PF-BP eq. (28)); the message product and marginalization are one unscented update of β by
+   the agent's range measurements, of which the agent's block is kept:
 
    .. math::
 
@@ -20,13 +20,22 @@ After Meyer, Hlinka, Hlawatsch, "Sigma point belief propagation", IEEE Signal Pr
 3. the estimate is ``x̂_i``.
 
 The sigma points are those of the PF-BP UKF covariance step
-(:func:`~phyloc.localization.tracking._flow.ukf_covariance_update`, eq. (30)): ``β̄ ± √n L_j`` with
-``L Lᵀ = P̃_i`` (Cholesky), weights ``1/(2n)``, no centre point (Julier's κ = 0), so the
-covariance update is the Schur complement of a PSD matrix and stays PSD. Measurements follow
-``factors`` as in PF-BP (distributed: eq. (17); centralized: eq. (18)). An agent without
-measurements keeps its prediction. Optional regularization adds ``Σ_r`` (eq. (32)) to every
-updated covariance, as PF-BP §VI does for SP-BP (eq. (33)). SP-BP is deterministic; ``rng``
-is accepted only for the common tracker signature.
+(:func:`~phyloc.localization.tracking._flow.ukf_covariance_update`, PF-BP eq. (30)):
+``β̄ ± √n L_j`` with ``L Lᵀ = P̃_i`` (Cholesky), weights ``1/(2n)``, no centre point (Julier's
+κ = 0), so the covariance update is the Schur complement of a PSD matrix and stays PSD.
+Measurements follow ``factors`` as in PF-BP (distributed: PF-BP eq. (17);
+centralized: PF-BP eq. (18)). An agent without measurements keeps its prediction. Optional
+regularization adds ``Σ_r`` (PF-BP eq. (32)) to every updated covariance, as PF-BP §VI does for
+SP-BP (PF-BP eq. (33)). SP-BP is deterministic; ``rng`` is accepted only for the common call
+shape.
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
+Information Processing over Networks 9, 2023.
+SP-BP: F. Meyer, O. Hlinka and F. Hlawatsch, "Sigma point belief propagation," IEEE Signal
+Processing Letters 21(2), pp. 145–149, 2014.
 """
 
 from __future__ import annotations
@@ -41,13 +50,14 @@ from scipy.linalg import block_diag
 from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
+from phyloc.localization.results import Result, Timing
 from phyloc.localization.tracking import _flow
 from phyloc.localization.tracking.range_models import (
     FACTORS,
-    RangeScenario,
-    TrackResult,
+    GaussianPrior,
+    RangeMeasurements,
     agent_measurements,
-    check_prior,
+    check_inputs,
     check_run_args,
     flow_links,
 )
@@ -64,9 +74,10 @@ class SPBPOptions:
     factors : {"distributed", "centralized"}
         PF-BP §V-A.
     regularize : bool
-        Add the kernel ``Σ_r`` of PF-BP eq. (32) to every updated covariance (eq. (33)) (off).
+        Add the kernel ``Σ_r`` of PF-BP eq. (32) to every updated covariance (PF-BP eq. (33))
+        (off).
     reg_std_vel, reg_std_acc : float
-        σ_r,vel [m/s], σ_r,acc [m/s²] of eq. (32) (0.15).
+        σ_r,vel [m/s], σ_r,acc [m/s²] of PF-BP eq. (32) (0.15).
     """
 
     n_iterations: int = 2
@@ -115,7 +126,8 @@ def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_o
     -------
     mean_out : [n_out] float64
     cov_out : [n_out, n_out] float64
-        Equal to :func:`~phyloc.localization.tracking._flow.ukf_covariance_update` (same sigma points).
+        Equal to :func:`~phyloc.localization.tracking._flow.ukf_covariance_update` (same sigma
+        points).
     """
     n = mean.size
     L = _flow.robust_cholesky(P) * np.sqrt(n)
@@ -138,49 +150,47 @@ def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_o
 
 
 def run_spbp(
-    scenario: RangeScenario,
-    prior_mean: np.ndarray,
-    prior_cov: np.ndarray,
+    measurements: RangeMeasurements,
+    prior: GaussianPrior,
     rng: np.random.Generator | None = None,
     options: SPBPOptions | None = None,
-) -> TrackResult:
-    """Track all agents of a scenario with sigma-point BP (Meyer et al. 2014).
+) -> Result:
+    """Track all agents with sigma-point BP (SP-BP); registered as ``spbp``.
 
     Parameters
     ----------
-    scenario : RangeScenario
-        From :func:`~phyloc.localization.tracking.range_models.simulate_scenario`.
-    prior_mean : [n_agents, N_D] float64
-        ``x̂_i^{(0)}`` (e.g. :func:`~phyloc.localization.tracking.range_models.paper_prior`, eq. (31)).
-    prior_cov : [n_agents, N_D, N_D] float64
-        ``P_i^{(0)}``.
+    measurements : RangeMeasurements
+        Ranges, anchors, model (no truth).
+    prior : GaussianPrior
+        ``x̂_i^{(0)}``, ``P_i^{(0)}`` (e.g. :func:`~phyloc.localization.tracking.paper_prior`,
+        PF-BP eq. (31)).
     rng : numpy.random.Generator, optional
-        Unused (SP-BP is deterministic); accepted for the signature of
-        :func:`~phyloc.localization.tracking.pfbp.run_pfbp`.
+        Unused (SP-BP is deterministic); accepted for the common call shape.
     options : SPBPOptions, optional
 
     Returns
     -------
-    TrackResult
-        ``mean [K, n_agents, N_D]``, ``cov [K, n_agents, N_D, N_D]`` (Gaussian beliefs),
-        timings, ``label="spbp"``.
+    Result
+        ``estimates [K, n_agents, N_D]``, ``covariances [K, n_agents, N_D, N_D]`` (Gaussian
+        beliefs), no particles; ``timing.agent_s = step_s / n_agents``,
+        ``agent_iterations = K · U · n_agents``; ``label="spbp"``.
 
     Examples
     --------
-    >>> from phyloc.network import make_network
-    >>> from phyloc.localization.tracking.range_models import (RangeModel, paper_prior,
-    ...     scenario_network_spec, simulate_scenario)
-    >>> rng = np.random.default_rng(1)
-    >>> net = make_network(scenario_network_spec(n_agents=3, n_steps=2), rng)
-    >>> sc = simulate_scenario(net, RangeModel(), rng)
-    >>> m, P = paper_prior(sc, rng)
-    >>> run_spbp(sc, m, P).mean.shape
-    (2, 3, 9)
+    >>> from phyloc.localization.tracking import GaussianPrior, RangeMeasurements, RangeModel
+    >>> z = np.full((2, 1, 4), np.nan)
+    >>> z[:, 0, 1:] = [5.0, 5.0, 5.0]
+    >>> anchors = np.array([[0.0, 0.0], [8.0, 0.0], [0.0, 8.0]])
+    >>> meas = RangeMeasurements(RangeModel("static", 2), anchors, z)
+    >>> prior = GaussianPrior(np.array([[3.0, 3.0]]), np.eye(2)[None] * 4.0)
+    >>> run_spbp(meas, prior).estimates.shape
+    (2, 1, 2)
     """
+    t_start = time.perf_counter()
     opt = check_run_args(options, SPBPOptions, rng, rng_required=False)
-    x, P = check_prior(scenario, prior_mean, prior_cov)
-    model = scenario.model
-    nd, n_ag, K = model.state_dim, scenario.n_agents, scenario.n_steps
+    x, P = check_inputs(measurements, prior)
+    model = measurements.model
+    nd, n_ag, K = model.state_dim, measurements.n_agents, measurements.n_steps
     F, _ = model.matrices()
     var = model.sigma_r**2
     Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc) if opt.regularize else None
@@ -189,38 +199,41 @@ def run_spbp(
     step_s = np.empty(K)
     for k in range(K):
         t0 = time.perf_counter()
-        x_pred = x @ F.T  # eq. (1)
-        P_pred = model.predict_cov(P)  # eq. (29)
+        x_pred = x @ F.T  # PF-BP eq. (1)
+        P_pred = model.predict_cov(P)  # PF-BP eq. (29)
         x_bel, P_bel = x_pred, P_pred
         for _u in range(opt.n_iterations):  # all agents in parallel
             new_x = np.empty_like(x_bel)
             new_P = np.empty_like(P_bel)
             for i in range(n_ag):
                 new_x[i], new_P[i] = _agent_update(
-                    i, scenario, k, x_pred, P_pred, x_bel, P_bel, opt.factors, var
+                    i, measurements, k, x_pred, P_pred, x_bel, P_bel, opt.factors, var
                 )
-                if Sr is not None:  # eq. (33)
+                if Sr is not None:  # PF-BP eq. (33)
                     new_P[i] += Sr
             x_bel, P_bel = new_x, new_P
         x, P = x_bel, P_bel
         out_mean[k] = x
         out_cov[k] = P
         step_s[k] = time.perf_counter() - t0
-    return TrackResult(out_mean, out_cov, step_s, step_s / n_ag, label="spbp")
+    timing = Timing(
+        time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
+    )
+    return Result(out_mean, out_cov, timing, label="spbp")
 
 
-def _agent_update(i, scenario, k, x_pred, P_pred, x_bel, P_bel, factors, var):
+def _agent_update(i, meas, k, x_pred, P_pred, x_bel, P_bel, factors, var):
     """One belief update of agent ``i``: unscented product of its prediction and the messages."""
-    model = scenario.model
-    dim, nd, n_ag = model.dim, model.state_dim, scenario.n_agents
-    rx, tx, zz, partners = agent_measurements(scenario.z[k], i, factors)
+    model = meas.model
+    dim, nd, n_ag = model.dim, model.state_dim, meas.n_agents
+    rx, tx, zz, partners = agent_measurements(meas.z[k], i, factors)
     if zz.size == 0:
         return x_pred[i], P_pred[i]
     local = np.full(n_ag, -1, dtype=np.int64)
     local[i] = 0
     local[partners] = np.arange(1, partners.size + 1)
-    off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, scenario.anchors, dim, nd)
+    off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, meas.anchors, dim, nd)
     beta = np.concatenate([x_pred[i]] + [x_bel[j] for j in partners])  # β̄
-    P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # as eq. (28)
+    P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # as PF-BP eq. (28)
     r_var = np.full(zz.size, var)
     return unscented_range_update(beta, P_t, off_a, off_b, apos, zz, r_var, dim, nd)
