@@ -3,15 +3,20 @@
 Work unit: one particle–link likelihood evaluation (distance, table interpolation or peak
 mixture, accumulate). Figures (names are the interface):
 
-``dipnet.env.evals_per_s_per_core``       eq. (25) kernel (cubic table interpolation), 1 thread
+``dipnet.env.evals_per_s_per_core``       DiPNet eq. (25) kernel (cubic interpolation), 1 thread
 ``dipnet.marginal.evals_per_s_per_core``  phyloc's marginal EL kernel, 1 thread
 ``dipnet.gauss.evals_per_s_per_core``     two-step Gaussian ERV kernel, 1 thread
-``dipnet.env.numpy_evals_per_s``          the NumPy twin of the eq. (25) kernel (reference)
-``dipnet.env.speedup_vs_numpy``
+``dipnet.env.numpy_evals_per_s``          the NumPy twin of the DiPNet eq. (25) kernel
+``dipnet.env.speedup_vs_numpy``           (the twin is ``tests/naive_direct.py``; without a
+                                          source checkout both are omitted: ``MISSING``)
 ``dipnet.agent_iteration_s``              safeguarded DiPNet, Q = 1000, |V_u| = 29 (30 agents)
-``dipnet_published.agent_iteration_s``    Algorithm 1 as published, same network
+``dipnet_published.agent_iteration_s``    DiPNet Algorithm 1 as published, same network
 ``dipnet.scaling_exponent_q``             d log(time) / d log(Q) of one likelihood sweep
-``dipnet.scaling_exponent_links``         d log(time) / d log(|V_u|)   (Table I: both 1)
+``dipnet.scaling_exponent_links``         d log(time) / d log(|V_u|)   (DiPNet Table I: both 1)
+
+The two agent-iteration figures run the registered methods ``METHODS["dipnet"]`` and
+``METHODS["dipnet_published"]`` (``run(measurements, prior, rng, options)``) on the network's
+correlation tables; ``timing.per_agent_iteration_s`` is the figure.
 """
 
 from __future__ import annotations
@@ -22,24 +27,25 @@ import numpy as np
 from phyloc.channels import ChannelSpec
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.localization import (
+    METHODS,
     DirectLikelihood,
-    DPFOptions,
     GaussianRangeLikelihood,
+    LinkMeasurements,
+    MarginalDirectLikelihood,
     Prior,
     gaussian_log_prior,
     gaussian_priors,
     informed_centers,
-    run_dpf,
 )
-from phyloc.localization import _kernels as K
-from phyloc.localization.likelihoods import MarginalDirectLikelihood
 from phyloc.network import NetworkSpec
 from phyloc.phy import OFDMSystem
 from phyloc.phy.correlation import correlation_tables
 
 try:
+    from phyloc.benchmarks._reference import MISSING, naive
     from phyloc.benchmarks._timing import best_seconds
 except ImportError:  # run from the source tree by asv
+    from benchmarks._reference import MISSING, naive
     from benchmarks._timing import best_seconds
 
 
@@ -107,36 +113,45 @@ def report(quick: bool = False) -> dict[str, float]:
             fig[f"dipnet.{kind}.evals_per_s_per_core"] = _sweep_rate(lik, X, pos, covs, repeat)[0]
     finally:
         numba.set_num_threads(before)
-    env = liks["env"]
-    scale = 1.0 / (env.env(pos, covs) * env.energy)
-    Xs = X[:4]
-    off = env.csr.offsets[:5]
-    t_np = best_seconds(
-        lambda: K.direct_loglik_numpy(
-            Xs,
-            off,
-            env.csr.tx,
-            env.rows,
-            scale,
-            pos,
-            env.table.values,
-            1.0 / env.table.spacing_m,
-            4,
-        ),
-        repeat=max(1, repeat - 2),
-    )
-    fig["dipnet.env.numpy_evals_per_s"] = off[-1] * Xs.shape[1] / t_np
-    fig["dipnet.env.speedup_vs_numpy"] = (
-        fig["dipnet.env.evals_per_s_per_core"] / fig["dipnet.env.numpy_evals_per_s"]
-    )
+    twin = naive("naive_direct")
+    if twin is not None:
+        env = liks["env"]
+        scale = 1.0 / (env.env(pos, covs) * env.energy)
+        Xs = X[:4]
+        off = env.csr.offsets[:5]
+        t_np = best_seconds(
+            lambda: twin.direct_loglik_numpy(
+                Xs,
+                off,
+                env.csr.tx,
+                env.rows,
+                scale,
+                pos,
+                env.table.values,
+                1.0 / env.table.spacing_m,
+                4,
+            ),
+            repeat=max(1, repeat - 2),
+        )
+        fig["dipnet.env.numpy_evals_per_s"] = off[-1] * Xs.shape[1] / t_np
+        fig["dipnet.env.speedup_vs_numpy"] = (
+            fig["dipnet.env.evals_per_s_per_core"] / fig["dipnet.env.numpy_evals_per_s"]
+        )
     prior = Prior(X, lambda x: gaussian_log_prior(x, centers[:30], 5.0), "informed start")
-    is_anchor = real.network.is_anchor
-    for name, opts, lik in (
-        ("dipnet", DPFOptions(n_iterations=4 if quick else 8), liks["marginal"]),
-        ("dipnet_published", DPFOptions.published(n_iterations=4 if quick else 8), liks["env"]),
-    ):
-        res = run_dpf(lik, prior, pos, is_anchor, np.random.default_rng(1), opts)
-        fig[f"{name}.agent_iteration_s"] = res.seconds / res.agent_iterations
+    net = real.network
+    meas = LinkMeasurements(
+        n_nodes=net.n_nodes,
+        dim=net.dim,
+        anchor_nodes=net.anchor_index,
+        anchor_positions=pos[net.anchor_index][None],
+        links=(real.links[0],),
+        tables=(liks["env"].table,),
+    )
+    for name in ("dipnet", "dipnet_published"):
+        method = METHODS[name]
+        opts = method.make_options({"n_iterations": 4 if quick else 8})
+        res = method.run(meas, prior, np.random.default_rng(1), opts)
+        fig[f"{name}.agent_iteration_s"] = res.timing.per_agent_iteration_s
     qs = [250, 500, 1000, 2000] if quick else [250, 500, 1000, 2000, 4000]
     tq = [
         _sweep_rate(liks["env"], gaussian_priors(centers, 5.0, q, rng), pos, covs, repeat)[1]
@@ -157,15 +172,17 @@ def summarize(fig: dict) -> str:
     """The printed form of :func:`report`."""
     from phyloc.reporting import format_table
 
+    has_twin = "dipnet.env.numpy_evals_per_s" in fig
+    ratio = f"{fig['dipnet.env.speedup_vs_numpy']:.0f}x NumPy twin" if has_twin else "MISSING"
     rows = [
-        (
-            "eq. (25) kernel (ENV, cubic)",
-            fig["dipnet.env.evals_per_s_per_core"],
-            f"{fig['dipnet.env.speedup_vs_numpy']:.0f}x NumPy twin",
-        ),
+        ("DiPNet eq. (25) kernel (ENV, cubic)", fig["dipnet.env.evals_per_s_per_core"], ratio),
         ("marginal EL kernel", fig["dipnet.marginal.evals_per_s_per_core"], ""),
         ("Gaussian ERV kernel", fig["dipnet.gauss.evals_per_s_per_core"], ""),
-        ("eq. (25) NumPy twin", fig["dipnet.env.numpy_evals_per_s"], "reference"),
+        (
+            "DiPNet eq. (25) NumPy twin",
+            fig["dipnet.env.numpy_evals_per_s"] if has_twin else "MISSING",
+            "reference",
+        ),
     ]
     t1 = format_table(rows, ["particle-link evaluations", "per s per core", "ratio"])
     rows2 = [
@@ -175,6 +192,8 @@ def summarize(fig: dict) -> str:
     t2 = format_table(rows2, ["Q = 1000, |V_u| = 29", "ms per agent-iteration"])
     t3 = (
         f"scaling of one likelihood sweep: time ∝ Q^{fig['dipnet.scaling_exponent_q']:.2f}, "
-        f"∝ |V_u|^{fig['dipnet.scaling_exponent_links']:.2f} per agent (Table I: 1 and 1)"
+        f"∝ |V_u|^{fig['dipnet.scaling_exponent_links']:.2f} per agent "
+        "(DiPNet Table I: 1 and 1)"
     )
-    return f"{t1}\n\n{t2}\n\n{t3}"
+    missing = "" if has_twin else f"\nMISSING: {MISSING}"
+    return f"{t1}{missing}\n\n{t2}\n\n{t3}"

@@ -3,8 +3,10 @@
 Commands
     ``phyloc bench [phy|channels|all] [--quick] [--json PATH]``
         Run benchmarks; print cost per unit of work and ratios to references.
-    ``phyloc evaluate RECIPE [--fast] [--out DIR] [--json PATH] [--workers N | --scheduler ADDR]``
+    ``phyloc evaluate RECIPE [--fast] [--out DIR] [--json PATH] [--workers N | --scheduler ADDR]
+    [--plugin MODULE]``
         Run an experiment recipe; write ``results.json``, the recipe and a PNG into DIR.
+        ``--plugin`` imports a module that registers the user's own localization methods.
     ``phyloc generate RECIPE -o OUT.h5 [--workers N | --scheduler ADDR] [--resume]``
         Generate an HDF5 waveform dataset (sharded, resumable).
     ``phyloc info OUT.h5 [--verify] [--json PATH]``
@@ -152,6 +154,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="run tasks on an existing Dask scheduler",
     )
     e.add_argument("--no-progress", action="store_true", help="no progress bar")
+    e.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import MODULE (a module name or a .py file) that registers localization methods "
+        "with phyloc.localization.register_method; repeatable",
+    )
     _add_json(e)
     e.set_defaults(func=cmd_evaluate)
 
@@ -267,6 +277,10 @@ def cmd_evaluate(args) -> int:
     from phyloc.config import load_recipe
     from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
 
+    if args.plugin:
+        from phyloc.localization.registry import add_plugins
+
+        add_plugins(args.plugin)
     source = Path(args.recipe)
     if source.suffix in (".h5", ".hdf5") or _is_hdf5(source):
         exp = importlib.import_module(EXPERIMENTS["localization"])

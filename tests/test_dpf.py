@@ -1,13 +1,27 @@
-"""The equivalent-likelihood DPF: DiPNet (eqs. (25)–(28)) and its safeguards."""
+"""The equivalent-likelihood DPF: DiPNet (DiPNet eqs. (25)–(28)) and its safeguards."""
 
 import math
 
 import numba
 import numpy as np
 import pytest
+from naive_direct import (
+    direct_loglik_numpy,
+    gauss_loglik_numpy,
+    mixture_loglik_numpy,
+    systematic_resample_numpy,
+)
 
 from phyloc.localization import _kernels as K
-from phyloc.localization.direct.dpf import DPFOptions, Prior, run_dpf
+from phyloc.localization.direct import (
+    DirectOptions,
+    DPFOptions,
+    LinkMeasurements,
+    Prior,
+    run,
+    run_dpf,
+)
+from phyloc.localization.direct.dpf import _floor
 from phyloc.localization.likelihoods import (
     DirectLikelihood,
     GaussianRangeLikelihood,
@@ -84,7 +98,7 @@ def test_env_eq26_and_erv_eq18_by_hand(rng):
     env = lik.env(centers, covs)
     assert env[0] == pytest.approx(expected, rel=1e-12)
     np.testing.assert_allclose(env[1:], lik.noise_var[1:])
-    # ENV consistency: CRB with σ̃² (eq. (24)) = CRB with σ² + σ²_{v→uv} (eq. (18))
+    # ENV consistency: CRB with σ̃² (DiPNet eq. (24)) = CRB with σ² + σ²_{v→uv} (DiPNet eq. (18))
     crb = C0**2 * lik.noise_var[0] / (2 * lik.alpha_abs2[0] * omega**2 * np.sum(n**2))
     crb_env = C0**2 * env[0] / (2 * lik.alpha_abs2[0] * omega**2 * np.sum(n**2))
     assert crb_env == pytest.approx(crb + s2, rel=1e-10)
@@ -110,14 +124,12 @@ def test_loglik_kernels_match_numpy_twins(rng):
     scale = rng.uniform(0.1, 2, 5)
     out = np.empty((n_agents, Q))
     K.direct_loglik_kernel(X, offsets, nb, np.arange(5), scale, centers, values, 1.3, 4, out)
-    ref = K.direct_loglik_numpy(X, offsets, nb, np.arange(5), scale, centers, values, 1.3, 4)
+    ref = direct_loglik_numpy(X, offsets, nb, np.arange(5), scale, centers, values, 1.3, 4)
     np.testing.assert_allclose(out, ref, rtol=1e-12)
     assert np.all(out[1] == 0)
     r, iv = rng.uniform(10, 90, 5), rng.uniform(0.1, 3, 5)
     K.gauss_loglik_kernel(X, offsets, nb, r, iv, centers, out)
-    np.testing.assert_allclose(
-        out, K.gauss_loglik_numpy(X, offsets, nb, r, iv, centers), rtol=1e-12
-    )
+    np.testing.assert_allclose(out, gauss_loglik_numpy(X, offsets, nb, r, iv, centers), rtol=1e-12)
 
 
 def test_systematic_resampling_matches_twin_and_textbook(rng):
@@ -126,7 +138,7 @@ def test_systematic_resampling_matches_twin_and_textbook(rng):
     for u0 in (0.0, 0.3, 0.999):
         out = np.empty(100, np.int64)
         K.systematic_resample_kernel(w, u0, out)
-        np.testing.assert_array_equal(out, K.systematic_resample_numpy(w, u0, 100))
+        np.testing.assert_array_equal(out, systematic_resample_numpy(w, u0, 100))
         # textbook: particle i is copied floor(N w_i) or ceil(N w_i) times
         counts = np.bincount(out, minlength=37)
         assert np.all(counts >= np.floor(100 * w) - 1e-9) and np.all(counts <= np.ceil(100 * w))
@@ -150,7 +162,7 @@ def test_dipnet_single_agent_reaches_the_efim_bound():
     for _ in range(25):
         lt = awgn_network(pos, is_anchor, links, rng)
         lk = DirectLikelihood(lt, links, agent_map(is_anchor), 1)
-        res = run_dpf(lk, gaussian_prior(pos[:1], 10.0, 1000, rng), pos, is_anchor, rng)
+        res = run_dpf(lk, gaussian_prior(pos[:1], 10.0, 1000, rng), pos[is_anchor], is_anchor, rng)
         errs.append(res.means[0] - pos[0])
     rmse = math.sqrt(np.mean(np.sum(np.square(errs), axis=1)))
     assert bound / 2 <= rmse <= 2 * bound
@@ -162,8 +174,8 @@ def test_published_variant_collapses_and_default_does_not():
     tab = awgn_network(pos, is_anchor, links, rng)
     lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
     wide = gaussian_prior(pos[:1] + 20.0, 40.0, 1000, rng)  # uninformative-ish
-    pub = run_dpf(lik, wide, pos, is_anchor, rng, DPFOptions.published())
-    safe = run_dpf(lik, wide, pos, is_anchor, rng, DPFOptions())
+    pub = run_dpf(lik, wide, pos[is_anchor], is_anchor, rng, DPFOptions.published())
+    safe = run_dpf(lik, wide, pos[is_anchor], is_anchor, rng, DPFOptions())
     assert pub.ess_history[0, 0] < 3.0
     assert safe.ess_history.min() >= 0.45 * 1000
     assert safe.annealing_steps > 1
@@ -183,11 +195,13 @@ def test_degenerate_inputs_stay_finite(opts):
     tab = awgn_network(pos, is_anchor, links, rng, scale_gain=0.0)
     object.__setattr__(tab, "values", np.zeros_like(tab.values))
     lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
-    _finite_belief(run_dpf(lik, gaussian_prior(pos[:1], 5.0, 200, rng), pos, is_anchor, rng, opts))
+    _finite_belief(
+        run_dpf(lik, gaussian_prior(pos[:1], 5.0, 200, rng), pos[is_anchor], is_anchor, rng, opts)
+    )
     # SNR of 100 dB
     tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=100.0)
     lik = DirectLikelihood(tab, links, agent_map(is_anchor), 1)
-    res = run_dpf(lik, gaussian_prior(pos[:1], 5.0, 200, rng), pos, is_anchor, rng, opts)
+    res = run_dpf(lik, gaussian_prior(pos[:1], 5.0, 200, rng), pos[is_anchor], is_anchor, rng, opts)
     _finite_belief(res)
     # an agent with no neighbours and two coincident agents
     pos2 = np.vstack([pos, [[37.0, 61.0]], [[80.0, 20.0]]])
@@ -196,7 +210,7 @@ def test_degenerate_inputs_stay_finite(opts):
     tab2 = awgn_network(pos2, is_anchor2, links2, rng)
     lik2 = DirectLikelihood(tab2, links2, agent_map(is_anchor2), 3)
     prior2 = gaussian_prior(pos2[~is_anchor2], 5.0, 200, rng)
-    res2 = run_dpf(lik2, prior2, pos2, is_anchor2, rng, opts)
+    res2 = run_dpf(lik2, prior2, pos2[is_anchor2], is_anchor2, rng, opts)
     _finite_belief(res2)
 
 
@@ -219,7 +233,7 @@ def test_many_particles_and_neighbours_stay_finite():
     res = run_dpf(
         g,
         gaussian_prior(pos[:1], 3.0, 10_000, rng),
-        pos,
+        pos[is_anchor],
         is_anchor,
         rng,
         DPFOptions(n_iterations=2),
@@ -238,7 +252,11 @@ def test_same_seed_same_result_with_any_thread_count():
         for threads in (1, before):
             numba.set_num_threads(threads)
             rng = np.random.default_rng(12)
-            out.append(run_dpf(lik, gaussian_prior(pos[:1], 10.0, 300, rng), pos, is_anchor, rng))
+            out.append(
+                run_dpf(
+                    lik, gaussian_prior(pos[:1], 10.0, 300, rng), pos[is_anchor], is_anchor, rng
+                )
+            )
     finally:
         numba.set_num_threads(before)
     np.testing.assert_array_equal(out[0].means, out[1].means)
@@ -247,7 +265,7 @@ def test_same_seed_same_result_with_any_thread_count():
 
 # -- the marginal equivalent likelihood ---------------------------------------------------------
 def test_mixture_kernel_matches_numpy_twin(rng):
-    from phyloc.localization._kernels import mixture_loglik_kernel, mixture_loglik_numpy
+    from phyloc.localization._kernels import mixture_loglik_kernel
 
     n_agents, Q, dim = 3, 40, 2
     X = rng.uniform(0, 100, (n_agents, Q, dim))
@@ -320,7 +338,7 @@ def test_gauge_priors_show_the_published_collapse():
     pub = run_dpf(
         DirectLikelihood(tab, links, agent_map(is_anchor), 6),
         prior,
-        pos,
+        pos[is_anchor],
         is_anchor,
         rng,
         DPFOptions.published(n_iterations=4),
@@ -328,7 +346,7 @@ def test_gauge_priors_show_the_published_collapse():
     safe = run_dpf(
         MarginalDirectLikelihood(tab, links, agent_map(is_anchor), 6),
         prior,
-        pos,
+        pos[is_anchor],
         is_anchor,
         rng,
         DPFOptions(n_iterations=4),
@@ -339,30 +357,50 @@ def test_gauge_priors_show_the_published_collapse():
 
 
 def test_tracking_follows_a_moving_agent():
-    from phyloc.localization import run_tracking
-
     rng = np.random.default_rng(31)
     T = 8
     path = np.array([37.0, 61.0]) + np.cumsum(rng.normal(0, 1.0, (T, 2)), axis=0)
-    liks, positions = [], []
+    tables, links_t = [], []
     for t in range(T):
         pos, is_anchor, links = single_agent_setup(tuple(path[t]))
-        tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=35.0)
-        liks.append(DirectLikelihood(tab, links, agent_map(is_anchor), 1))
-        positions.append(pos)
-    prior = gaussian_prior(np.array([path[0]]), 5.0, 1000, rng)
-    res = run_tracking(
-        liks,
-        prior,
-        np.array(positions),
-        is_anchor,
-        rng,
-        DPFOptions(n_iterations=2),
-        process_std_m=1.5,
+        tables.append(awgn_network(pos, is_anchor, links, rng, pc_snr_db=35.0))
+        links_t.append(links)
+    meas = LinkMeasurements(
+        n_nodes=5,
+        dim=2,
+        anchor_nodes=[1, 2, 3, 4],
+        anchor_positions=np.repeat(ANCHORS[None], T, axis=0),
+        links=links_t,
+        tables=tables,
     )
-    err = np.array([np.linalg.norm(r.means[0] - path[t]) for t, r in enumerate(res)])
+    prior = gaussian_prior(np.array([path[0]]), 5.0, 1000, rng)
+    opts = DirectOptions(likelihood="env", dpf=DPFOptions(n_iterations=2), process_std_m=1.5)
+    res = run(meas, prior, rng, opts)
+    assert res.estimates.shape == (T, 1, 2) and res.covariances.shape == (T, 1, 2, 2)
+    err = np.linalg.norm(res.estimates[:, 0] - path, axis=1)
     assert np.all(err < 0.3)  # every snapshot, although the agent moves ~1.4 m per step
-    assert all(np.all(np.isfinite(r.log_weights[np.isfinite(r.log_weights)])) for r in res)
+    assert res.diagnostics["ess_history"].shape == (T, 2, 1)
+    assert res.timing.agent_iterations == T * 2
+    assert np.all(np.isfinite(res.log_weights[np.isfinite(res.log_weights)]))
+
+
+def test_covariance_floor_is_the_efim_crb(rng):
+    """The floor is max(floor², tr(J⁻¹)/dim)·I with J = Σ ν e eᵀ (DiPNet eq. (17)), by hand."""
+    pos, is_anchor, links = single_agent_setup()
+    nu = np.array([0.5, 2.0, 1.0, 4.0])
+    g = GaussianRangeLikelihood(
+        np.full(4, 50.0), 1.0 / nu, np.ones(4, bool), links, agent_map(is_anchor), 1
+    )
+    e = (pos[0] - pos[1:]) / np.linalg.norm(pos[0] - pos[1:], axis=1)[:, None]
+    J = sum(n * np.outer(u, u) for n, u in zip(nu, e, strict=True))
+    crb = np.trace(np.linalg.inv(J)) / 2
+    tiny = np.zeros((1, 2, 2))
+    out = _floor(tiny, g, pos, np.array([0]), 1e-3)
+    np.testing.assert_allclose(out[0], crb * np.eye(2), rtol=1e-12)
+    out = _floor(tiny, g, pos, np.array([0]), 10.0)  # a floor above the CRB wins
+    np.testing.assert_allclose(out[0], 100.0 * np.eye(2))
+    big = np.array([np.diag([50.0, 60.0])])
+    np.testing.assert_array_equal(_floor(big, g, pos, np.array([0]), 1e-3), big)
 
 
 def test_outlier_floor_bounds_the_evidence_of_one_link(rng):

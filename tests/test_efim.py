@@ -21,13 +21,13 @@ from phyloc.analysis.efim import (
     spectral_moment2,
 )
 from phyloc.errors import ValidationError
-from phyloc.phy.bounds import crb_range
+from phyloc.phy.bounds import crb_range, ranging_crb
 from phyloc.phy.waveform import qpsk_symbols
 
 C0 = 299_792_458.0  # the tests keep their own copy
 
 
-# -- eq. (24) -----------------------------------------------------------------------------------
+# -- DiPNet eq. (24) -------------------------------------------------------------------------------
 def test_ranging_information_hand_values():
     # ω = c0 ⇒ ω²/c0² = 1: ν = 2·SNR·M = 2·10·5 = 100
     assert ranging_information(10.0, 5.0, C0) == pytest.approx(100.0, rel=1e-14)
@@ -59,6 +59,23 @@ def test_ranging_information_is_inverse_of_phy_crb(small_system, rng):
     np.testing.assert_allclose(1.0 / nu, crb_range(snr, S, small_system), rtol=1e-12)
 
 
+def test_ranging_information_calls_the_one_eq24():
+    snr = np.array([0.0, 0.5, 3.0, 1e6])
+    np.testing.assert_array_equal(
+        ranging_information(snr, 7.0, 1e8), 1.0 / ranging_crb(snr, 7.0, 1e8)
+    )
+
+
+def test_efim_is_exactly_symmetric(rng):
+    for _ in range(20):
+        pu, P, nu = rng.normal(0, 30, 3), rng.normal(0, 30, (7, 3)), rng.uniform(0.1, 10, 7)
+        J = efim(pu, P, nu)
+        np.testing.assert_array_equal(J, J.T)  # exactly: rounding could break the symmetry
+        e = (pu - P) / np.linalg.norm(pu - P, axis=1)[:, None]
+        by_hand = sum(n * np.outer(u, u) for n, u in zip(nu, e, strict=True))
+        np.testing.assert_allclose(J, by_hand, rtol=1e-12)
+
+
 def test_ranging_information_validation():
     with pytest.raises(ValidationError, match="snr"):
         ranging_information(-1.0, 5.0, 1e8)
@@ -68,7 +85,7 @@ def test_ranging_information_validation():
         ranging_information(1.0, np.nan, 1e8)
 
 
-# -- eq. (15) -----------------------------------------------------------------------------------
+# -- DiPNet eq. (15) -------------------------------------------------------------------------------
 def test_projected_variance_hand_values():
     C = np.array([[4.0, 1.0], [1.0, 2.0]])
     # e = (0.6, 0.8): 0.36·4 + 2·0.6·0.8·1 + 0.64·2 = 1.44 + 0.96 + 1.28 = 3.68
@@ -102,7 +119,7 @@ def test_projected_variance_averages_to_isotropic_value(rng):
     )
 
 
-# -- eqs. (14), (18) ----------------------------------------------------------------------------
+# -- DiPNet eqs. (14), (18) ------------------------------------------------------------------------
 def test_equivalent_ranging_information_hand_values():
     # ν = 4 m⁻² (CRB 0.25 m²), σ² = 0.75 m²: 1/ν̃ = 0.25 + 0.75 = 1 (18); 4/(1 + 3) = 1 (14)
     assert equivalent_ranging_information(4.0, 0.75) == pytest.approx(1.0, rel=1e-15)
@@ -135,7 +152,7 @@ def test_equivalent_ranging_information_limits_never_nan():
         equivalent_ranging_information(1.0, -0.1)
 
 
-# -- eq. (26) -----------------------------------------------------------------------------------
+# -- DiPNet eq. (26) -------------------------------------------------------------------------------
 def test_equivalent_noise_variance_hand_values():
     # ω = c0: σ̃² = 2 + 2·1·0.5·3·4 = 2 + 12 = 14
     assert equivalent_noise_variance(2.0, 0.5, 3.0, 4.0, C0) == pytest.approx(14.0, rel=1e-14)
@@ -146,7 +163,8 @@ def test_equivalent_noise_variance_hand_values():
 
 
 def test_env_reproduces_equivalent_ranging_uncertainty(rng, paper_system):
-    # the derivation of (26): eq. (24) with σ̃² in place of σ² gives 1/ν + σ²_{v→uv} (eq. (18))
+    # the derivation of DiPNet eq. (26): DiPNet eq. (24) with σ̃² in place of σ² gives
+    # 1/ν + σ²_{v→uv} (DiPNet eq. (18))
     S = qpsk_symbols(paper_system, 1, rng)[0]
     M = spectral_moment2(S)
     w = paper_system.omega
@@ -157,12 +175,12 @@ def test_env_reproduces_equivalent_ranging_uncertainty(rng, paper_system):
     lhs = 1.0 / ranging_information(alpha2 / env, M, w)
     rhs = 1.0 / ranging_information(alpha2 / noise, M, w) + s2
     np.testing.assert_allclose(lhs, rhs, rtol=1e-12)
-    # and the ν̃ of eq. (14) is the same number
+    # and the ν̃ of DiPNet eq. (14) is the same number
     nu_eq = equivalent_ranging_information(ranging_information(alpha2 / noise, M, w), s2)
     np.testing.assert_allclose(1.0 / lhs, nu_eq, rtol=1e-12)
 
 
-# -- EFIM (eqs. (13), (17)) and the position bound ------------------------------------------------
+# -- EFIM (DiPNet eqs. (13), (17)) and the position bound ------------------------------------------
 @pytest.mark.parametrize("K", [3, 4, 5, 8, 13])
 def test_efim_anchors_on_circle_closed_form(K, rng):
     nu = 2.5

@@ -25,11 +25,16 @@ n_iterations = 3
 resample_move = false
 """
 
-DATASET = 'kind = "dataset"\nname = "tiny"\n' + COMMON.replace(
-    "[channel]", "[dataset]\nrealizations = 2\nshard_size = 1\n[channel]"
-) + '[experiment]\nmethods = ["dipnet_published", "corr"]\ninits = ["truth_free"]\n'
+DATASET = (
+    'kind = "dataset"\nname = "tiny"\n'
+    + COMMON.replace("[channel]", "[dataset]\nrealizations = 2\nshard_size = 1\n[channel]")
+    + '[experiment]\nmethods = ["dipnet_published", "corr"]\ninits = ["truth_free"]\n'
+)
 
-IN_MEMORY = 'kind = "localization"\nname = "tiny"\n' + COMMON + """
+IN_MEMORY = (
+    'kind = "localization"\nname = "tiny"\n'
+    + COMMON
+    + """
 [experiment]
 scenarios = { c2 = "winner2_c2" }
 agents = [4]
@@ -38,6 +43,7 @@ methods = ["dipnet_published", "corr"]
 inits = ["truth_free"]
 cdf_agents = [4]
 """
+)
 
 
 @pytest.fixture(autouse=True)

@@ -7,13 +7,26 @@ import pytest
 
 from naive import C0, trapezoid_zzb
 from phyloc.errors import ValidationError
-from phyloc.phy.bounds import crb_range, post_correlation_snr, zzb_range
+from phyloc.phy.bounds import crb_range, post_correlation_snr, ranging_crb, zzb_range
 from phyloc.phy.waveform import qpsk_symbols
 
 
 @pytest.fixture
 def S(paper_system):
     return qpsk_symbols(paper_system, 1, np.random.default_rng(0))[0]
+
+
+def test_ranging_crb_is_the_one_eq24(paper_system, S):
+    # ω = c0 ⇒ CRB = 1/(2·SNR·M) = 1/(2·10·5) = 0.01
+    assert ranging_crb(10.0, 5.0, C0) == pytest.approx(0.01, rel=1e-14)
+    assert ranging_crb(0.0, 5.0, C0) == np.inf
+    # crb_range is DiPNet eq. (24) for given pilots: the same numbers, bit for bit
+    n = paper_system.subcarrier_indices()
+    M = float((np.abs(S) ** 2 * n**2).sum())
+    snr = np.array([0.01, 0.37, 5.0])
+    np.testing.assert_array_equal(
+        crb_range(snr, S, paper_system), ranging_crb(snr, M, paper_system.omega)
+    )
 
 
 def test_crb_closed_form_for_unit_modulus_pilots(paper_system, S):

@@ -2,17 +2,17 @@
 
 The equivalent-likelihood (EL) idea: a neighbour ``v`` known only through its belief mean and
 covariance is treated as an anchor whose ranging uncertainty is inflated by its position
-uncertainty projected on the link (eqs. (13)–(18)):
+uncertainty projected on the link (DiPNet eqs. (13)–(18)):
 
-- ranging information intensity (RII) ``ν = 1/CRB`` of a one-path OFDM link (eq. (24)):
+- ranging information intensity (RII) ``ν = 1/CRB`` of a one-path OFDM link (DiPNet eq. (24)):
   :func:`ranging_information`;
-- projected neighbour variance ``σ²_{v→uv} = e_uvᵀ I_v⁻¹ e_uv`` (eq. (15)), with the belief
+- projected neighbour variance ``σ²_{v→uv} = e_uvᵀ I_v⁻¹ e_uv`` (DiPNet eq. (15)), with the belief
   covariance standing in for ``I_v⁻¹``: :func:`projected_variance`;
-- equivalent RII ``ν̃ = ν/(1 + νσ²_{v→uv})``, i.e. ``1/ν̃ = 1/ν + σ²_{v→uv}`` (eqs. (14),
+- equivalent RII ``ν̃ = ν/(1 + νσ²_{v→uv})``, i.e. ``1/ν̃ = 1/ν + σ²_{v→uv}`` (DiPNet eqs. (14),
   (18)): :func:`equivalent_ranging_information`;
-- the equivalent noise variance (ENV) of DiPNet's likelihood (eq. (26)), the noise variance
-  that turns eq. (24) into ``1/ν̃``: :func:`equivalent_noise_variance`;
-- the EFIM/EBIM ``J_u = I_u⁽⁰⁾ + Σ_v ν_uv e_uv e_uvᵀ`` (eqs. (13), (17)) and the position
+- the equivalent noise variance (ENV) of DiPNet's likelihood (DiPNet eq. (26)), the noise variance
+  that turns DiPNet eq. (24) into ``1/ν̃``: :func:`equivalent_noise_variance`;
+- the EFIM/EBIM ``J_u = I_u⁽⁰⁾ + Σ_v ν_uv e_uv e_uvᵀ`` (DiPNet eqs. (13), (17)) and the position
   error bound ``tr J_u⁻¹``: :func:`efim`, :func:`position_crb`.
 
 Coincident nodes (``p_u = p_v``) leave the direction ``e_uv`` undefined. phyloc then uses the
@@ -22,6 +22,18 @@ other link). Nothing here returns NaN for finite input.
 
 Units: positions [m], ``ν`` [1/m²], variances of distances [m²], ``ω`` [rad/s], noise
 variances and ``|α|²`` in the same (arbitrary) power unit.
+
+These are the one implementation of each equation in phyloc: DiPNet eq. (24) itself is
+:func:`phyloc.phy.bounds.ranging_crb` (which :func:`ranging_information` inverts), the
+localizers' likelihoods call :func:`ranging_information`, :func:`projected_variance` and
+:func:`equivalent_noise_variance`, and their covariance floor calls :func:`efim` and
+:func:`position_crb`.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -30,6 +42,7 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
+from phyloc.phy.bounds import ranging_crb
 from phyloc.phy.system import C0
 
 COINCIDENT_TOL_M = 1e-12
@@ -52,7 +65,7 @@ def _nonneg(name: str, value, *, allow_inf: bool = False) -> np.ndarray:
 
 
 def spectral_moment2(symbols) -> np.ndarray:
-    """``M = Σ_n |S_n|² n²`` over ``n = −(N−1)/2 … (N−1)/2`` (the sum in eqs. (24), (26)).
+    """``M = Σ_n |S_n|² n²`` over ``n = −(N−1)/2 … (N−1)/2`` (the sum in DiPNet eqs. (24), (26)).
 
     Parameters
     ----------
@@ -82,6 +95,9 @@ def spectral_moment2(symbols) -> np.ndarray:
 def ranging_information(snr, symbols_power_moment2, omega) -> np.ndarray:
     """Ranging information intensity ``ν = 1/CRB_d`` of a one-path OFDM link (DiPNet eq. (24)).
 
+    The inverse of :func:`phyloc.phy.bounds.ranging_crb`, the one implementation of DiPNet
+    eq. (24).
+
     .. math:: ν = \\frac{1}{\\mathrm{CRB}_{uv}}
               = \\frac{2 |α|^2 ω^2 \\sum_n |S_n|^2 n^2}{c_0^2 σ^2}
               = \\frac{2\\,\\mathrm{SNR}\\,ω^2 M}{c_0^2}
@@ -108,11 +124,12 @@ def ranging_information(snr, symbols_power_moment2, omega) -> np.ndarray:
     s = _nonneg("snr", snr)
     m = _nonneg("symbols_power_moment2", symbols_power_moment2)
     w = v.positive("omega", omega)
-    return 2.0 * s * w**2 * m / C0**2
+    with np.errstate(divide="ignore"):
+        return 1.0 / ranging_crb(s, m, w)
 
 
 def direction_vectors(position_u, positions_v) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vectors ``e_uv = (p_u − p_v)/‖p_u − p_v‖`` (eq. (15)) and a coincidence mask.
+    """Unit vectors ``e_uv = (p_u − p_v)/‖p_u − p_v‖`` (DiPNet eq. (15)) and a coincidence mask.
 
     Parameters
     ----------
@@ -188,7 +205,7 @@ def projected_variance(cov_v, e_uv) -> np.ndarray:
 def equivalent_ranging_information(nu, sigma2_proj) -> np.ndarray:
     """Equivalent RII ``ν̃ = ν/(1 + ν σ²_{v→uv})`` (DiPNet eq. (14)).
 
-    Computed as ``1/(1/ν + σ²)`` (eq. (18)), which also covers the limits: ``ν = 0`` or
+    Computed as ``1/(1/ν + σ²)`` (DiPNet eq. (18)), which also covers the limits: ``ν = 0`` or
     ``σ² = inf`` give 0, ``ν = inf`` gives ``1/σ²`` (``inf`` when ``σ² = 0``).
 
     Parameters
@@ -214,12 +231,12 @@ def equivalent_ranging_information(nu, sigma2_proj) -> np.ndarray:
 
 
 def equivalent_noise_variance(noise_var, sigma2_proj, alpha_abs2, moment2, omega) -> np.ndarray:
-    """Equivalent noise variance (ENV) of DiPNet's equivalent likelihood (eq. (26)).
+    """Equivalent noise variance (ENV) of DiPNet's equivalent likelihood (DiPNet eq. (26)).
 
     .. math:: \\tilde σ^2_{uv} = σ^2 + \\frac{2 ω^2 σ^2_{v→uv}}{c_0^2} |α|^2 \\sum_n |S_n|^2 n^2
 
-    It is the noise variance for which eq. (24) gives the equivalent ranging uncertainty of
-    eq. (18): ``c0² σ̃²/(2|α|²ω²M) = 1/ν + σ²_{v→uv}``.
+    It is the noise variance for which DiPNet eq. (24) gives the equivalent ranging
+    uncertainty of DiPNet eq. (18): ``c0² σ̃²/(2|α|²ω²M) = 1/ν + σ²_{v→uv}``.
 
     Parameters
     ----------
@@ -251,12 +268,13 @@ def efim(position_u, neighbor_positions, nu, prior_info=None, *, neighbor_cov=No
 
     .. math:: J_u = I_u^{(0)} + \\sum_{v} ν_{uv}\\, e_{uv} e_{uv}^T
 
-    With ``nu`` the RII ``ν`` of each link and no ``neighbor_cov`` this is eq. (17) with the
-    neighbours known (anchors); with ``neighbor_cov`` each ``ν`` is first replaced by the
-    equivalent RII ``ν̃ = ν/(1 + ν σ²_{v→uv})`` (eqs. (14), (15)), giving the EBIM of eq. (13)
-    (neighbour uncertainty projected on the link). ``e_uv`` is evaluated at the given
-    positions (the means ``p̄`` of eq. (15)). A coincident neighbour contributes ``ν I/dim``
-    (see the module docstring).
+    With ``nu`` the RII ``ν`` of each link and no ``neighbor_cov`` this is DiPNet eq. (17)
+    with the neighbours known (anchors); with ``neighbor_cov`` each ``ν`` is first replaced by
+    the equivalent RII ``ν̃ = ν/(1 + ν σ²_{v→uv})`` (DiPNet eqs. (14), (15)), giving the EBIM
+    of DiPNet eq. (13) (neighbour uncertainty projected on the link). ``e_uv`` is evaluated at
+    the given positions (the means ``p̄`` of DiPNet eq. (15)). A coincident neighbour
+    contributes ``ν I/dim`` (see the module docstring). ``J`` is exactly symmetric (its upper
+    triangle mirrors the lower one).
 
     Parameters
     ----------
@@ -315,7 +333,8 @@ def efim(position_u, neighbor_positions, nu, prior_info=None, *, neighbor_cov=No
         nu_a = equivalent_ranging_information(nu_a, projected_variance(C, e))
     J += np.einsum("k,ki,kj->ij", nu_a, e, e)
     J += np.eye(dim) * (nu_a[coincident].sum() / dim)
-    return J
+    # rounding can leave J[i, j] != J[j, i]: mirror the lower triangle (what eigvalsh reads)
+    return np.tril(J) + np.tril(J, -1).T
 
 
 def position_crb(J) -> np.ndarray:

@@ -8,13 +8,20 @@ waveforms and, per initialization, from the *same* prior particles:
 
 ``dipnet``            DiPNet with phyloc's safeguards: the marginal equivalent likelihood
                       (:class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`,
-                      eq. (22) marginalized over the neighbour's projected uncertainty instead
-                      of the ENV of eq. (26)), adaptive tempering, resample-move, covariance
-                      floor (:class:`~phyloc.localization.DPFOptions`)
-``dipnet_published``  Algorithm 1 as published: eqs. (25)–(28) with the ENV, no safeguards
+                      DiPNet eq. (22) marginalized over the neighbour's projected uncertainty
+                      instead of the ENV of DiPNet eq. (26)), adaptive tempering,
+                      resample-move, covariance floor (:class:`~phyloc.localization.DPFOptions`)
+``dipnet_published``  DiPNet Algorithm 1 as published: DiPNet eqs. (25)–(28) with the ENV, no
+                      safeguards
 ``corr`` / ``first_peak`` / ``sage``   the two-step EL-DPF on that estimator's ranges with the
                       ZZB ranging variance (DiPNet §V-A), same safeguards as ``dipnet``
 ``sage_los``          SAGE on LOS links only — an oracle benchmark (ground-truth NLOS rejection)
+
+The methods are the direct family of :data:`phyloc.localization.METHODS` (any registered
+direct method runs here too): per realization the experiment builds one
+:class:`~phyloc.localization.LinkMeasurements` — the correlation tables and the ranges of every
+estimator a method's ``inputs`` names — and calls ``method.run(measurements, prior, rng,
+method.make_options([localization]))``; the truth enters only the metrics.
 
 Initializations (labelled in every figure name):
 
@@ -24,13 +31,20 @@ Initializations (labelled in every figure name):
                       start, not a truth-free result
 ``gauge`` (``<s>_gauge``)  the paper's uninformative anchor-free gauge priors (shows the pitfall)
 
-Figures: ``<method>.<token>.agents_<n>.framework_rmse_m`` (eq. (4), pooled over realizations),
-``<method>.<token>.agents_<n>.shape_difference_m`` (eq. (1)),
+Figures: ``<method>.<token>.agents_<n>.framework_rmse_m`` (DiPNet eq. (4), pooled over
+realizations),
+``<method>.<token>.agents_<n>.shape_difference_m`` (DiPNet eq. (1)),
 ``<method>.<token>.agents_<n>.ess_min`` (smallest effective sample size of any agent in any
 iteration, mean over runs),
 ``<method>.runtime_per_agent_iteration_s``, ``<s>.link_bias.<los|nlos>_mean_m`` (correlation-peak
 range bias). Series: error CDFs at ``experiment.cdf_agents``, and per iteration at the largest
 network: mean ESS, published std ``sqrt(tr C/dim)`` and actual error of the published means.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -42,7 +56,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
 from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
@@ -50,10 +63,11 @@ from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict, scenario_specs
 from phyloc.evaluation.metrics import framework_distance_errors, shape_difference
 from phyloc.evaluation.ranging_experiment import RangingSpec
+from phyloc.localization import METHODS as REGISTRY
 from phyloc.localization import (
-    DirectLikelihood,
-    DPFOptions,
-    GaussianRangeLikelihood,
+    DirectOptions,
+    LinkMeasurements,
+    LinkRanges,
     Prior,
     coarse_positions,
     gauge_log_prior,
@@ -61,69 +75,74 @@ from phyloc.localization import (
     gaussian_log_prior,
     gaussian_priors,
     informed_centers,
-    run_dpf,
 )
-from phyloc.localization.likelihoods import MarginalDirectLikelihood
 from phyloc.network import NetworkSpec
 from phyloc.parallel import run_tasks
 from phyloc.phy.correlation import correlation_tables
 from phyloc.ranging import estimate
 
-METHODS = ("dipnet", "dipnet_published", "corr", "first_peak", "sage", "sage_los")
-TWO_STEP = ("corr", "first_peak", "sage", "sage_los")
+METHODS = REGISTRY.family("direct")
+"""The methods this experiment can run: every registered method of the direct family."""
 INITS = {"truth_free": "", "informed": "_informed", "gauge": "_gauge"}
 CDF_GRID_M = np.linspace(0.0, 30.0, 301)
 
 
+PRIOR_KEYS = ("prior_std_m", "informed_std_m", "gauge_extent_m")
+"""``[localization]`` keys of the experiment's priors; every other key is a method option."""
+
+
 @dataclass(frozen=True)
 class LocalizationSpec:
-    """``[localization]``: filter options (:class:`DPFOptions` fields) and priors.
+    """``[localization]``: the methods' options and the experiment's priors.
 
-    ``outlier_nats`` the marginal EL's per-link evidence bound (``inf`` disables it);
     ``prior_std_m`` std of the truth-free Gaussian priors around the coarse solution [m];
     ``informed_std_m`` σ0 of the informed start [m]; ``gauge_extent_m`` half-width of the
-    uniform gauge priors [m].
+    uniform gauge priors [m]. Every other key is an option of the direct family
+    (:class:`~phyloc.localization.DirectOptions`: the :class:`~phyloc.localization.DPFOptions`
+    fields, ``outlier_nats`` …), kept as written in ``options``; a subtable
+    ``[localization.<method>]`` (``method_options``) holds the options of one method. A method
+    whose options are :class:`~phyloc.localization.DirectOptions` gets ``options`` updated by
+    its subtable, any other (a user's method) its subtable only (:meth:`options_for`).
     """
 
-    dpf: DPFOptions = field(default_factory=DPFOptions)
+    options: dict = field(default_factory=dict)
     prior_std_m: float = 10.0
     informed_std_m: float = 10.0
     gauge_extent_m: float = 150.0
-    outlier_nats: float = 10.0
+    method_options: dict = field(default_factory=dict)
 
     def __post_init__(self):
         v.positive("localization.prior_std_m", self.prior_std_m)
         v.positive("localization.informed_std_m", self.informed_std_m)
         v.positive("localization.gauge_extent_m", self.gauge_extent_m)
-        if not float(self.outlier_nats) > 0:
-            raise ValidationError("localization.outlier_nats", self.outlier_nats, "> 0 (inf: off)")
+        object.__setattr__(self, "options", dict(self.options))
+        object.__setattr__(self, "method_options", dict(self.method_options))
+        DirectOptions.from_dict(self.options, "localization")  # names a bad key or value
+        for name in self.method_options:
+            if name in REGISTRY:
+                self.options_for(name)
 
     @classmethod
     def from_dict(cls, d: dict) -> LocalizationSpec:
-        """From ``[localization]``; the DPF keys are those of :class:`DPFOptions`."""
+        """From ``[localization]``: the prior keys, the direct family's option keys and the
+        per-method subtables."""
         d = dict(d)
-        own = {
-            k: d.pop(k)
-            for k in ("prior_std_m", "informed_std_m", "gauge_extent_m", "outlier_nats")
-            if k in d
-        }
-        dpf_keys = [f.name for f in dataclasses.fields(DPFOptions)]
-        check_keys(
-            d,
-            [*dpf_keys, "prior_std_m", "informed_std_m", "gauge_extent_m", "outlier_nats"],
-            "localization",
-        )
-        return cls(dpf=DPFOptions(**d), **own)
+        own = {k: d.pop(k) for k in PRIOR_KEYS if k in d}
+        sub = {k: d.pop(k) for k in list(d) if isinstance(d[k], dict)}
+        return cls(options=d, method_options=sub, **own)
 
-    def options(self, method: str) -> DPFOptions:
-        """The filter options of a method (the published variant drops every safeguard)."""
-        if method == "dipnet_published":
-            return DPFOptions.published(
-                n_particles=self.dpf.n_particles,
-                n_iterations=self.dpf.n_iterations,
-                interpolation=self.dpf.interpolation,
-            )
-        return self.dpf
+    def options_for(self, name: str):
+        """The options of method ``name`` (``METHODS[name].make_options(...)``)."""
+        method = REGISTRY[name]
+        own = self.method_options.get(name, {})
+        if method.options is DirectOptions:
+            return method.make_options({**self.options, **own}, "localization")
+        return method.make_options(own, f"localization.{name}")
+
+    @property
+    def dpf(self):
+        """The filter options written in the recipe (``n_particles`` of the priors, meta)."""
+        return DirectOptions.from_dict(self.options, "localization").dpf
 
 
 @dataclass(frozen=True)
@@ -145,9 +164,12 @@ class LocalizationExperimentSpec:
             raise ValidationError("experiment.agents", [], "at least one size >= 2")
         object.__setattr__(self, "agents", agents)
         v.integer("experiment.realizations", self.realizations, minimum=1)
+        direct = REGISTRY.family("direct")
         for m in self.methods:
-            if m not in METHODS:
-                raise ValidationError("experiment.methods", m, f"each one of {', '.join(METHODS)}")
+            if m not in direct:
+                raise ValidationError(
+                    "experiment.methods", m, f"each a direct-family method: {', '.join(direct)}"
+                )
         for i in self.inits:
             if i not in INITS:
                 raise ValidationError("experiment.inits", i, f"each one of {', '.join(INITS)}")
@@ -218,6 +240,45 @@ def _dataset_task(payload, seed_seq):
     return _localize(real, system, rspec, lspec, methods, inits, seed_seq)
 
 
+def _measurements(real, table, rspec, methods):
+    """The measurements of snapshot 0 of a realization, for every method's ``inputs``.
+
+    Correlation tables, and the ranges of ``"corr"`` (the truth-free initialization and the
+    link-bias figures read them) and of every estimator a method's ``inputs`` names
+    (``"ranges:<estimator>"``; the oracle ``"sage_los"`` gets the true LOS flags here, in
+    the evaluation)."""
+    net, links, draw = real.network, real.links[0], real.channels[0]
+    ways = real.ways
+    names = {"corr"}
+    for m in methods:
+        inputs = REGISTRY[m].inputs
+        if inputs.startswith("ranges:"):
+            names.add(inputs.split(":", 1)[1])
+    ranges = {}
+    for name in sorted(names):
+        e = estimate(name, table, los=draw.los, **rspec.method_options(name))
+        if ways != 1:  # two-way tables measure the round trip
+            e = dataclasses.replace(
+                e, range_m=e.range_m / ways, variance_m2=e.variance_m2 / ways**2
+            )
+        ranges[name] = e
+    anchors = net.anchor_index
+    meas = LinkMeasurements(
+        n_nodes=net.n_nodes,
+        dim=net.dim,
+        anchor_nodes=anchors,
+        anchor_positions=net.positions[0][anchors][None],
+        links=(links,),
+        tables=(table,),
+        ranges={
+            k: LinkRanges((e.range_m,), (e.variance_m2,), (e.valid,)) for k, e in ranges.items()
+        },
+        ways=ways,
+        window_m=rspec.window_m,
+    )
+    return meas, ranges
+
+
 def _localize(real, system, rspec, lspec, methods, inits, seed_seq):
     """Ranging and every localization method on snapshot 0 of a realization.
 
@@ -228,22 +289,8 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq):
     d = net.distances(0)
     tx = links[:, 1]
     table = correlation_tables(real.received[0], real.symbols, system, beta=rspec.beta, tx_index=tx)
-    ways = real.ways
-    ests = {}
-    for m in {"corr", *[m for m in methods if m in TWO_STEP]}:
-        name = "sage" if m == "sage_los" else m
-        if name not in ests:
-            ests[name] = estimate(name, table, **rspec.method_options(name))
-    if "sage_los" in methods:
-        ests["sage_los"] = estimate("sage_los", table, los=draw.los, **rspec.method_options("sage"))
-    if ways != 1:  # two-way tables measure the round trip
-        ests = {
-            k: dataclasses.replace(e, range_m=e.range_m / ways, variance_m2=e.variance_m2 / ways**2)
-            for k, e in ests.items()
-        }
-    agent_of = -np.ones(net.n_nodes, np.int64)
-    agent_of[net.agent_index] = np.arange(net.n_agents)
-    truth = net.positions[0]
+    meas, ests = _measurements(real, table, rspec, methods)
+    truth = net.positions[0]  # enters the metrics only
     out = {
         "link_err_corr": ests["corr"].range_m - d,
         "link_valid_corr": ests["corr"].valid,
@@ -256,45 +303,54 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq):
         for m in methods:
             rng_m = np.random.default_rng(streams[s])
             s += 1
-            if m == "dipnet":
-                lik = MarginalDirectLikelihood(
-                    table,
-                    links,
-                    agent_of,
-                    net.n_agents,
-                    window_m=rspec.window_m,
-                    ways=ways,
-                    outlier_nats=lspec.outlier_nats,
-                )
-            elif m == "dipnet_published":
-                lik = DirectLikelihood(
-                    table,
-                    links,
-                    agent_of,
-                    net.n_agents,
-                    interpolation=lspec.dpf.interpolation,
-                    window_m=rspec.window_m,
-                    ways=ways,
-                )
-            else:
-                e = ests[m]
-                lik = GaussianRangeLikelihood(
-                    e.range_m, e.variance_m2, e.valid, links, agent_of, net.n_agents
-                )
-            res = run_dpf(lik, prior, truth, net.is_anchor, rng_m, lspec.options(m))
-            est = res.means
+            method = REGISTRY[m]
+            res = method.run(meas, prior, rng_m, lspec.options_for(m))
             key = f"{m}|{init}"
-            out[key + "|err"] = framework_distance_errors(est, truth, net.is_anchor)
-            out[key + "|shape"] = shape_difference(est, truth, net.is_anchor)
-            out[key + "|ess"] = res.ess_history.mean(axis=1)
-            out[key + "|ess_min"] = float(res.ess_history.min())
-            dim = net.dim
-            out[key + "|published_std"] = np.sqrt(res.cov_trace_history.mean(axis=1) / dim)
-            out[key + "|actual_err"] = np.array(
-                [shape_difference(mk, truth, net.is_anchor) for mk in res.mean_history]
-            ) / math.sqrt(dim)
-            out[key + "|sec_per_agent_it"] = res.seconds / max(res.agent_iterations, 1)
+            out.update(_run_outputs(key, res, meas, truth))
     return out
+
+
+def _run_outputs(key, res, meas, truth):
+    """Metrics of one run (``res``, a Result) against the truth, keyed ``key|<what>``.
+
+    The per-iteration series read the direct family's diagnostics (``mean_history``,
+    ``cov_trace_history``, ``ess_history``); a method without them (a user's method) gives its
+    final estimate as the only "iteration" and NaN for the ESS."""
+    dim, is_anchor = meas.dim, meas.is_anchor
+    agents = meas.agent_nodes
+    diag = res.diagnostics
+    est = _nodes(res.estimates[0], meas, agents)
+    history = diag["mean_history"][0] if "mean_history" in diag else res.estimates[:1]
+    out = {
+        key + "|err": framework_distance_errors(est, truth, is_anchor),
+        key + "|shape": shape_difference(est, truth, is_anchor),
+        key + "|actual_err": np.array(
+            [shape_difference(_nodes(mk, meas, agents), truth, is_anchor) for mk in history]
+        )
+        / math.sqrt(dim),
+        key + "|sec_per_agent_it": res.timing.per_agent_iteration_s,
+    }
+    if "ess_history" in diag:
+        ess = diag["ess_history"][0]
+        out[key + "|ess"], out[key + "|ess_min"] = ess.mean(axis=1), float(ess.min())
+    else:
+        out[key + "|ess"], out[key + "|ess_min"] = np.full(1, np.nan), float("nan")
+    if "cov_trace_history" in diag:
+        trace = diag["cov_trace_history"][0].mean(axis=1)
+    elif res.covariances is not None:
+        trace = np.trace(res.covariances[0], axis1=1, axis2=2).mean(keepdims=True)
+    else:
+        trace = np.full(1, np.nan)
+    out[key + "|published_std"] = np.sqrt(trace / dim)
+    return out
+
+
+def _nodes(agent_estimates, meas, agents):
+    """``[n_nodes, dim]`` positions: the estimates in agents' rows, anchors where known."""
+    full = np.zeros((meas.n_nodes, meas.dim))
+    full[meas.anchor_nodes] = meas.anchor_positions[0]
+    full[agents] = agent_estimates
+    return full
 
 
 def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):

@@ -19,15 +19,34 @@ Examples
 >>> from phyloc.localization import METHODS
 >>> sorted(METHODS.family("direct"))[:2]
 ['corr', 'dipnet']
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost et al., "Distributed Direct Localization Suitable for
+Dense Networks," IEEE Trans. Aerosp. Electron. Syst. 56(2), 2020.
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer, K. Witrisal, "Message Passing-Based 9-D
+Cooperative Localization and Navigation with Embedded Particle Flow."
+POA-NBP: R. Mendrzik, G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+Indoor Localization."
 """
 
 # ruff: noqa: I001 (imports grouped by family)
+from phyloc.localization import registry
 from phyloc.localization.registry import FAMILIES, METHODS, Method, Registry, register_method
 from phyloc.localization.results import Result, Timing
 
 # The families register their methods in METHODS when imported.
 # --- direct family -------------------------------------------------------------------------
-from phyloc.localization.direct.dpf import DPFOptions, DPFResult, Prior, run_dpf, run_tracking
+from phyloc.localization.direct import (
+    DirectOptions,
+    DPFOptions,
+    LinkMeasurements,
+    LinkRanges,
+    Prior,
+    dipnet,
+    dipnet_published,
+)
+from phyloc.localization.direct import run as run_direct
 from phyloc.localization.initialization import (
     INFORMED_START_STD_M,
     CoarseSolution,
@@ -43,44 +62,49 @@ from phyloc.localization.initialization import (
     shortest_path_completion,
     smacof,
 )
-from phyloc.localization.likelihoods import DirectLikelihood, GaussianRangeLikelihood
+from phyloc.localization.likelihoods import (
+    DirectLikelihood,
+    GaussianRangeLikelihood,
+    MarginalDirectLikelihood,
+)
 
 # --- tracking family -----------------------------------------------------------------------
-from phyloc.localization.tracking.edh import run_edh
-from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.tracking.range_models import (
+from phyloc.localization.tracking import (
+    GaussianPrior,
+    PFBPOptions,
+    RangeMeasurements,
     RangeModel,
-    RangeScenario,
+    SIRBPOptions,
+    SPBPOptions,
     paper_prior,
-    scenario_network_spec,
-    simulate_scenario,
-    state_errors,
+    run_edh,
+    run_pfbp,
+    run_sirbp,
+    run_spbp,
 )
-from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
-from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
 
 # --- static family -------------------------------------------------------------------------
-from phyloc.localization.static.gaussian_bp import (
-    GaussianBPOptions,
-    WLSOptions,
-    run_gaussian_bp,
-    run_wls,
-)
-from phyloc.localization.static.nbp import NBPOptions, run_nbp
-from phyloc.localization.static.polygons import (
+from phyloc.localization.static import (
     ConvexPolygon,
+    EllipseRegion,
+    ExponentialRangeError,
+    GaussianBPOptions,
+    GaussianRangeError,
+    NBPOptions,
+    StaticMeasurements,
+    StaticPrior,
+    WLSOptions,
     anchor_polygon,
     ellipse_outer_approximation,
     intersect,
     poa,
+    run_gaussian_bp,
+    run_nbp,
+    run_wls,
     scale_polygon,
 )
-from phyloc.localization.static.static_ranges import (
-    ExponentialRangeError,
-    GaussianRangeError,
-    paper_static_scenario,
-    simulate_ranges,
-)
+
+registry.load_plugins()  # user methods: $PHYLOC_PLUGINS and the "phyloc.methods" entry points
 
 __all__ = [  # noqa: RUF022 (grouped by family)
     # shared
@@ -95,12 +119,17 @@ __all__ = [  # noqa: RUF022 (grouped by family)
     "INFORMED_START_STD_M",
     "CoarseSolution",
     "DPFOptions",
-    "DPFResult",
     "DirectLikelihood",
+    "DirectOptions",
     "GaussianRangeLikelihood",
+    "LinkMeasurements",
+    "LinkRanges",
+    "MarginalDirectLikelihood",
     "Prior",
     "classical_mds",
     "coarse_positions",
+    "dipnet",
+    "dipnet_published",
     "gauge_log_prior",
     "gauge_priors",
     "gaussian_log_prior",
@@ -108,14 +137,14 @@ __all__ = [  # noqa: RUF022 (grouped by family)
     "informed_centers",
     "range_matrix",
     "raw_stress",
-    "run_dpf",
-    "run_tracking",
+    "run_direct",
     "shortest_path_completion",
     "smacof",
     # tracking
+    "GaussianPrior",
     "PFBPOptions",
+    "RangeMeasurements",
     "RangeModel",
-    "RangeScenario",
     "SIRBPOptions",
     "SPBPOptions",
     "paper_prior",
@@ -123,24 +152,22 @@ __all__ = [  # noqa: RUF022 (grouped by family)
     "run_pfbp",
     "run_sirbp",
     "run_spbp",
-    "scenario_network_spec",
-    "simulate_scenario",
-    "state_errors",
     # static
     "ConvexPolygon",
+    "EllipseRegion",
     "ExponentialRangeError",
     "GaussianBPOptions",
     "GaussianRangeError",
     "NBPOptions",
+    "StaticMeasurements",
+    "StaticPrior",
     "WLSOptions",
     "anchor_polygon",
     "ellipse_outer_approximation",
     "intersect",
-    "paper_static_scenario",
     "poa",
     "run_gaussian_bp",
     "run_nbp",
     "run_wls",
     "scale_polygon",
-    "simulate_ranges",
 ]

@@ -1,9 +1,16 @@
-"""Numba kernels of the particle localizers, each beside its plain-NumPy twin (``*_numpy``).
+"""Numba kernels of the particle localizers (likelihoods of DiPNet eqs. (25), (18), resampling).
 
 Link likelihoods are summed per agent over its incoming links in CSR form: the links of agent
 ``a`` are ``j = offsets[a] … offsets[a+1]−1``, each with the neighbour node ``nb_node[j]``
 whose published position is ``centers[nb_node[j]]``. Kernels run in parallel over agents and
-write disjoint rows of ``out``.
+write disjoint rows of ``out``. Each kernel is tested against a plain-NumPy twin in
+``tests/naive_direct.py``.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ def direct_loglik_kernel(
     """``out[a, q] = Σ_j nb_scale[j]·|f_{nb_row[j]}(‖x_{a,q} − c_{nb_node[j]}‖)|²``.
 
     The equivalent likelihood of DiPNet eq. (25) in log form, with
-    ``nb_scale = γ/(σ̃²‖S‖²)`` (tempering γ, ENV σ̃² of eq. (26)) and ``f`` interpolated from
+    ``nb_scale = γ/(σ̃²‖S‖²)`` (tempering γ, ENV σ̃² of DiPNet eq. (26)) and ``f`` interpolated from
     the correlation table ``values`` (grid spacing ``1/inv_h``, Lagrange ``order``).
     """
     n_agents, Q, dim = particles.shape
@@ -41,22 +48,6 @@ def direct_loglik_kernel(
                     acc += t * t
                 f = _lagrange_eval(values, row, L, np.sqrt(acc) * inv_h, order)
                 out[a, q] += s * (f.real * f.real + f.imag * f.imag)
-
-
-def direct_loglik_numpy(
-    particles, offsets, nb_node, nb_row, nb_scale, centers, values, inv_h, order
-):
-    """Plain-NumPy twin of :func:`direct_loglik_kernel`."""
-    from phyloc.phy._kernels import interp_numpy
-
-    n_agents, Q, _ = particles.shape
-    out = np.zeros((n_agents, Q))
-    for a in range(n_agents):
-        for j in range(offsets[a], offsets[a + 1]):
-            d = np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
-            f = interp_numpy(values, np.full(Q, nb_row[j]), d * inv_h, order)
-            out[a] += nb_scale[j] * np.abs(f) ** 2
-    return out
 
 
 @njit(cache=True, parallel=True)
@@ -83,17 +74,6 @@ def gauss_loglik_kernel(particles, offsets, nb_node, ranges, inv_var, centers, o
                 out[a, q] -= w * e * e
 
 
-def gauss_loglik_numpy(particles, offsets, nb_node, ranges, inv_var, centers):
-    """Plain-NumPy twin of :func:`gauss_loglik_kernel`."""
-    n_agents, Q, _ = particles.shape
-    out = np.zeros((n_agents, Q))
-    for a in range(n_agents):
-        for j in range(offsets[a], offsets[a + 1]):
-            d = np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
-            out[a] -= 0.5 * inv_var[j] * (d - ranges[j]) ** 2
-    return out
-
-
 @njit(cache=True)
 def systematic_resample_kernel(weights, u0, out):
     """Systematic resampling: ``out[i]`` = index of the particle covering ``(i + u0)/n``.
@@ -110,14 +90,6 @@ def systematic_resample_kernel(weights, u0, out):
             j += 1
             c += weights[j]
         out[i] = j
-
-
-def systematic_resample_numpy(weights, u0, n):
-    """Plain-NumPy twin of :func:`systematic_resample_kernel`."""
-    edges = np.cumsum(weights)
-    edges[-1] = max(edges[-1], 1.0)
-    u = (np.arange(n) + u0) / n
-    return np.minimum(np.searchsorted(edges, u, side="left"), weights.size - 1)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -172,26 +144,6 @@ def mixture_loglik_kernel(
                     t = x - pk_d[p0 + i]
                     tot += np.exp(base[i] - half_prec[i] * t * t - best)
                 out[a, q] += gamma * (best + np.log(tot))
-
-
-def mixture_loglik_numpy(
-    particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, floor, ways, gamma, centers
-):
-    """Plain-NumPy twin of :func:`mixture_loglik_kernel`."""
-    n_agents, Q, _ = particles.shape
-    out = np.zeros((n_agents, Q))
-    for a in range(n_agents):
-        for j in range(offsets[a], offsets[a + 1]):
-            x = ways * np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
-            sl = slice(pk_off[j], pk_off[j + 1])
-            v = 1.0 / pk_c[sl] + s2[j]
-            terms = (pk_h[sl] - 0.5 * np.log1p(pk_c[sl] * s2[j]))[None, :] - 0.5 * (
-                x[:, None] - pk_d[sl][None, :]
-            ) ** 2 / v[None, :]
-            terms = np.concatenate([np.full((Q, 1), floor[j]), terms], axis=1)
-            m = terms.max(axis=1)
-            out[a] += gamma * (m + np.log(np.exp(terms - m[:, None]).sum(axis=1)))
-    return out
 
 
 @njit(cache=True, parallel=True)

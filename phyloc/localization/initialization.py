@@ -1,6 +1,6 @@
 """Initialization of the particle filters: a truth-free coarse solution and the priors it seeds.
 
-DiPNet (Algorithm 1) draws each agent's Q particles once from its *a priori* pdf, which the
+DiPNet Algorithm 1 draws each agent's Q particles once from its *a priori* pdf, which the
 paper does not state. Run from uninformative priors the filter collapses (issue 5), so phyloc
 offers three initializations, each labelled as such wherever results are reported:
 
@@ -22,6 +22,14 @@ uninformative gauge priors
 Shapes follow the package conventions: positions ``[n_nodes, dim]``, particles
 ``[n_agents, Q, dim]``, links ``[n_links, 2]`` with ``(u, v)`` meaning "u receives from v".
 Distances in metres. Every random draw takes a ``numpy.random.Generator``.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+I. Borg and P. J. F. Groenen, *Modern Multidimensional Scaling: Theory and Applications*,
+2nd ed., Springer, 2005 (classical MDS, SMACOF).
 """
 
 from __future__ import annotations

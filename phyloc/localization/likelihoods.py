@@ -1,19 +1,26 @@
 """Link likelihoods of the equivalent-likelihood distributed particle filter (DiPNet §III).
 
-Both likelihoods see a neighbour only through its published mean and covariance (the first two
-moments of its belief, Algorithm 1 line 5) and inflate the link's uncertainty by the projected
-neighbour variance ``σ²_{v→uv} = e_uvᵀ C_v e_uv`` (eq. (15)):
+The likelihoods see a neighbour only through its published mean and covariance (the first two
+moments of its belief, DiPNet Algorithm 1 line 5) and inflate the link's uncertainty by the
+projected neighbour variance ``σ²_{v→uv} = e_uvᵀ C_v e_uv`` (DiPNet eq. (15)):
 
 :class:`DirectLikelihood` (DiPNet)
-    ``log p̃ = |f_uv(‖p_u − p̂_v‖)|² / (σ̃²_uv ‖S‖²)`` (eq. (25)) from the link's correlation
-    table, with the equivalent noise variance (ENV) of eq. (26)
+    ``log p̃ = |f_uv(‖p_u − p̂_v‖)|² / (σ̃²_uv ‖S‖²)`` (DiPNet eq. (25)) from the link's
+    correlation table, with the equivalent noise variance (ENV) of DiPNet eq. (26)
     ``σ̃² = σ² + 2ω²σ²_{v→uv}|α̂|² Σ|S_n|²n² / c0²``.
 :class:`GaussianRangeLikelihood` (two-step EL-DPF)
     ``log p̃ = −(‖p_u − p̂_v‖ − r̂_uv)² / (2(var_uv + σ²_{v→uv}))``: the Gaussian ranging model
-    with the equivalent ranging variance (ERV) of eq. (18).
+    with the equivalent ranging variance (ERV) of DiPNet eq. (18).
 
 Links are the directed pairs ``(u, v)`` with u an agent (u uses its own received signal from
-v). Tempering multiplies every log-likelihood by γ ∈ (0, 1].
+v). Tempering multiplies every log-likelihood by γ ∈ (0, 1]. The ENV and the ranging
+information are those of :mod:`phyloc.analysis.efim` (one implementation of each equation).
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -22,6 +29,12 @@ import math
 
 import numpy as np
 
+from phyloc.analysis.efim import (
+    COINCIDENT_TOL_M,
+    equivalent_noise_variance,
+    projected_variance,
+    ranging_information,
+)
 from phyloc.errors import ValidationError
 from phyloc.localization import _kernels as K
 from phyloc.phy.correlation import CorrelationTable, interpolation_order
@@ -29,21 +42,15 @@ from phyloc.phy.system import C0
 
 
 def projected_variances(centers, covs, rx, tx) -> np.ndarray:
-    """``σ²_{v→uv} = e_uvᵀ C_v e_uv`` per link (eq. (15)), ``e_uv = (c_u − c_v)/‖c_u − c_v‖``.
+    """``σ²_{v→uv} = e_uvᵀ C_v e_uv`` per link (DiPNet eq. (15)), ``e_uv = (c_u − c_v)/‖·‖``.
 
-    Coincident means leave the direction undefined; the link then uses the isotropic value
-    ``trace(C_v)/dim`` (never NaN).
+    :func:`phyloc.analysis.efim.projected_variance` per link ``(rx, tx)`` at the published
+    means ``centers``. Coincident means (``‖c_u − c_v‖ <= COINCIDENT_TOL_M``) leave the
+    direction undefined; the link then uses the isotropic value ``trace(C_v)/dim`` (never NaN).
     """
     diff = centers[rx] - centers[tx]
-    norm = np.linalg.norm(diff, axis=1)
-    C = covs[tx]
-    dim = centers.shape[1]
-    iso = np.trace(C, axis1=1, axis2=2) / dim
-    ok = norm > 1e-12
-    e = np.zeros_like(diff)
-    e[ok] = diff[ok] / norm[ok, None]
-    proj = np.einsum("li,lij,lj->l", e, C, e)
-    return np.where(ok, proj, iso)
+    ok = np.linalg.norm(diff, axis=1) > COINCIDENT_TOL_M
+    return projected_variance(covs[tx], np.where(ok[:, None], diff, 0.0))
 
 
 class _Links:
@@ -64,7 +71,7 @@ class _Links:
 
 
 class DirectLikelihood:
-    """DiPNet's equivalent likelihood from correlation tables (eqs. (25), (26)).
+    """DiPNet's equivalent likelihood from correlation tables (DiPNet eqs. (25), (26)).
 
     Parameters
     ----------
@@ -77,13 +84,13 @@ class DirectLikelihood:
     interpolation : str
         Table interpolation (see :mod:`phyloc.phy.correlation`).
     window_m : (float, float)
-        Where the amplitude |α̂| of eq. (21) is estimated (the correlation peak).
+        Where the amplitude |α̂| of DiPNet eq. (21) is estimated (the correlation peak).
     ways : int
         1 for synchronized one-way ranging, 2 for two-way (the table's distance axis is then
         the round trip, so the likelihood is evaluated at ``2‖p_u − p̂_v‖``).
     use_env : bool
-        Inflate σ² by the neighbour's projected variance (eq. (26)); False treats neighbours as
-        exactly known.
+        Inflate σ² by the neighbour's projected variance (DiPNet eq. (26)); False treats
+        neighbours as exactly known.
     """
 
     kind = "direct"
@@ -116,15 +123,17 @@ class DirectLikelihood:
         self.energy = table.symbol_energy[idx]
         self.moment2 = table.symbol_moment2[idx]
         self.omega = table.system.omega
-        # ranging information ν = 1/CRB (eq. (24)) of each link, for covariance floors
-        self.nu = 2.0 * self.alpha_abs2 * self.omega**2 * self.moment2 / (C0**2 * self.noise_var)
+        # ranging information ν = 1/CRB (DiPNet eq. (24)) of each link, for covariance floors
+        self.nu = ranging_information(snr[idx], self.moment2, self.omega)
 
     def env(self, centers, covs) -> np.ndarray:
-        """Equivalent noise variance σ̃² per link (eq. (26))."""
+        """Equivalent noise variance σ̃² per link (DiPNet eq. (26))."""
         if not self.use_env:
             return self.noise_var.copy()
         s2 = projected_variances(centers, covs, self.csr.rx, self.csr.tx) * self.ways**2
-        return self.noise_var + 2.0 * self.omega**2 * s2 * self.alpha_abs2 * self.moment2 / C0**2
+        return equivalent_noise_variance(
+            self.noise_var, s2, self.alpha_abs2, self.moment2, self.omega
+        )
 
     def loglik(self, particles, centers, covs, gamma=1.0) -> np.ndarray:
         """``γ Σ_v log p̃(r_uv | x, p̂_v)`` for every particle, ``[n_agents, Q]``."""
@@ -146,7 +155,7 @@ class DirectLikelihood:
 
 
 class GaussianRangeLikelihood:
-    """Two-step equivalent likelihood: Gaussian ranges with the ERV of eq. (18).
+    """Two-step equivalent likelihood: Gaussian ranges with the ERV of DiPNet eq. (18).
 
     Parameters
     ----------
@@ -195,11 +204,11 @@ class GaussianRangeLikelihood:
 class MarginalDirectLikelihood:
     """DiPNet's direct likelihood marginalized over the neighbour's projected uncertainty.
 
-    The one-path likelihood of eq. (22), ``exp(ℓ(d))`` with ``ℓ = |f(d)|²/(σ²‖S‖²)``, is
+    The one-path likelihood of DiPNet eq. (22), ``exp(ℓ(d))`` with ``ℓ = |f(d)|²/(σ²‖S‖²)``, is
     represented by the Laplace approximations of its peaks in the search window (position
     ``d_i``, height ``h_i = ℓ(d_i)``, curvature ``c_i = −ℓ''(d_i)``, all from the exact spectral
     sum) plus the floor ``exp(0)``, and convolved with ``N(0, σ²_{v→uv})`` along the distance
-    axis — the neighbour's position uncertainty projected on the link (eq. (15)):
+    axis — the neighbour's position uncertainty projected on the link (DiPNet eq. (15)):
 
     .. math:: \\log\\tilde p(r_{uv}|p_u, \\hat p_v) = \\log\\Big(1 + \\sum_i
               \\frac{e^{h_i}}{\\sqrt{1 + c_i σ^2_{v→uv}}}
@@ -207,12 +216,13 @@ class MarginalDirectLikelihood:
               {2(1/c_i + σ^2_{v→uv})}\\Big)\\Big).
 
     At each peak its curvature is ``1/(1/c_i + σ²_{v→uv})`` — the equivalent ranging
-    information of eqs. (14)/(18), as the ENV of eq. (26) also gives — but, unlike eq. (25) with
-    the ENV, its height does not vanish when the neighbour is uncertain: eq. (25) divides the
-    whole bump by σ̃², which for a neighbour known to 10 m leaves a bump of ~0.1 nat (height
-    ``≈ 6c0²/(ω²N²σ²_{v→uv})``) and no pull beyond the correlation main lobe; the marginal keeps
-    the full evidence spread over the uncertain range. This is phyloc's default DiPNet
-    likelihood (a departure from eq. (25), documented as such); ``DirectLikelihood`` is eq. (25).
+    information of DiPNet eqs. (14)/(18), as the ENV of DiPNet eq. (26) also gives — but,
+    unlike DiPNet eq. (25) with the ENV, its height does not vanish when the neighbour is
+    uncertain: DiPNet eq. (25) divides the whole bump by σ̃², which for a neighbour known to
+    10 m leaves a bump of ~0.1 nat (height ``≈ 6c0²/(ω²N²σ²_{v→uv})``) and no pull beyond the
+    correlation main lobe; the marginal keeps the full evidence spread over the uncertain range.
+    This is phyloc's default DiPNet likelihood (a departure from DiPNet eq. (25), documented as
+    such); ``DirectLikelihood`` is DiPNet eq. (25).
 
     Peaks are the grid maxima of ``|f|²`` in ``window_m`` with ``h_i >= max h − drop_nats``, at
     most ``max_peaks`` per link (the highest).
@@ -223,7 +233,7 @@ class MarginalDirectLikelihood:
     ``outlier_nats``. Without it, while neighbours are uncertain (large σ²_{v→uv}) the
     smoothed peaks act like a Gaussian ranging model around whatever peak is strongest —
     including an NLOS peak 90 m late — and a minority of NLOS links can pull an agent to a
-    wrong solution; eq. (25)'s bounded |f|² evidence has this robustness by construction.
+    wrong solution; DiPNet eq. (25)'s bounded |f|² evidence has this robustness by construction.
     ``outlier_nats=inf`` gives the plain marginal.
     """
 

@@ -14,6 +14,12 @@ Examples
 'direct'
 >>> "pfbp_reg" in METHODS and "poa_nbp" in METHODS
 True
+
+References
+----------
+L. Buitinck et al., "API design for machine learning software: experiences from the
+scikit-learn project," ECML PKDD Workshop, 2013 (one entry point per estimator, a common
+contract checked by one test).
 """
 
 from __future__ import annotations

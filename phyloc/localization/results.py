@@ -6,6 +6,15 @@ timing. A *step* is whatever the family iterates over in time: a snapshot (direc
 time step (tracking family) or a message-passing iteration (static family, whose network does
 not move). Results never contain the truth; metrics compare them with the truth in
 :mod:`phyloc.evaluation`.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost et al., "Distributed Direct Localization Suitable for
+Dense Networks," IEEE Trans. Aerosp. Electron. Syst. 56(2), 2020.
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer, K. Witrisal, "Message Passing-Based 9-D
+Cooperative Localization and Navigation with Embedded Particle Flow."
+POA-NBP: R. Mendrzik, G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+Indoor Localization."
 """
 
 from __future__ import annotations

@@ -3,6 +3,18 @@
 SNRs here are *per-sample* SNRs ``|α|²/σ²`` (linear); the post-correlation SNR is
 ``‖S‖²·|α|²/σ²`` (``N`` times for unit-modulus pilots), see :func:`post_correlation_snr`.
 Both bounds are variances of a distance estimate [m²].
+
+:func:`ranging_crb` is the one implementation of DiPNet eq. (24) in phyloc: :func:`crb_range`
+evaluates it for given pilots, :func:`phyloc.analysis.efim.ranging_information` (the ranging
+information ``ν = 1/CRB``) and the covariance floor of the direct localizers call it.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+K. L. Bell, Y. Steinberg, Y. Ephraim and H. L. Van Trees, "Extended Ziv–Zakai lower bound for
+vector parameter estimation," IEEE Trans. Information Theory 43(2), pp. 624–637, 1997.
 """
 
 from __future__ import annotations
@@ -35,6 +47,36 @@ def post_correlation_snr(snr, symbols, system: OFDMSystem) -> np.ndarray:
     return _snr(snr) * _power_spectrum(symbols, system).sum()
 
 
+def ranging_crb(snr, moment2, omega) -> np.ndarray:
+    """Cramér–Rao bound of a one-path link's distance from its parts [m²] (DiPNet eq. (24)).
+
+    .. math:: \\mathrm{CRB} = \\frac{c_0^2}{2\\,\\mathrm{SNR}\\,ω^2 M},
+              \\qquad \\mathrm{SNR} = \\frac{|α|^2}{σ^2},\\quad M = \\sum_n |S_n|^2 n^2
+
+    The one implementation of DiPNet eq. (24); no validation (callers validate).
+
+    Parameters
+    ----------
+    snr : array_like float64
+        Per-sample SNR ``|α|²/σ²`` (linear, >= 0); 0 gives ``inf``.
+    moment2 : array_like float64
+        ``M = Σ_n |S_n|² n²`` (dimensionless, > 0).
+    omega : float
+        ``ω = 2π f_sc`` [rad/s].
+
+    Returns
+    -------
+    crb : broadcast shape, float64 [m²]
+
+    Examples
+    --------
+    >>> float(ranging_crb(1.0, 2.0, C0))  # c0²/(2·1·c0²·2)
+    0.25
+    """
+    with np.errstate(divide="ignore"):
+        return C0**2 / (2.0 * np.asarray(snr, dtype=np.float64) * omega**2 * moment2)
+
+
 def crb_range(snr, symbols, system: OFDMSystem) -> np.ndarray:
     """Cramér–Rao bound of the distance of a one-path link [m²] (DiPNet eq. (24)).
 
@@ -61,8 +103,7 @@ def crb_range(snr, symbols, system: OFDMSystem) -> np.ndarray:
     P = _power_spectrum(symbols, system)
     n = system.subcarrier_indices()
     m2 = float((P * n**2).sum())
-    with np.errstate(divide="ignore"):
-        return C0**2 / (2.0 * s * system.omega**2 * m2)
+    return ranging_crb(s, m2, system.omega)
 
 
 def _one_minus_rho(h_m, P, system: OFDMSystem) -> np.ndarray:

@@ -1,0 +1,107 @@
+"""The direct family: DiPNet and the two-step EL-DPF (DiPNet Algorithm 1).
+
+Every method is :func:`run` (``run(measurements, prior, rng, options) -> Result``) on
+:class:`LinkMeasurements` from a :class:`Prior`, with :class:`DirectOptions`; importing this
+package registers the named variants in :data:`phyloc.localization.METHODS`:
+
+``dipnet``            DiPNet with phyloc's safeguards: the marginal equivalent likelihood
+                      bounded by ``outlier_nats``, adaptive tempering, resample-move,
+                      covariance floor (label "DiPNet"); inputs ``"tables"``
+``dipnet_published``  DiPNet Algorithm 1 as published: DiPNet eqs. (25)–(28) with the ENV of
+                      DiPNet eq. (26), no safeguards; inputs ``"tables"``
+``corr``, ``first_peak``, ``sage``
+                      the two-step EL-DPF on that estimator's ranges (Gaussian likelihood with
+                      the ERV of DiPNet eq. (18)), same safeguards as ``dipnet``; inputs
+                      ``"ranges:<estimator>"``
+``sage_los``          the two-step EL-DPF on SAGE ranges of LOS links only — an oracle
+                      benchmark (NLOS links rejected by ground truth); inputs
+                      ``"ranges:sage_los"``
+
+A method's ``inputs`` tells an experiment which measurements to build: ``"tables"`` the
+correlation tables, ``"ranges:<name>"`` the ranges of estimator ``<name>``, which its options'
+``ranges`` key then reads.
+
+Examples
+--------
+>>> from phyloc.localization import METHODS
+>>> METHODS["dipnet"].label, METHODS["sage"].inputs
+('DiPNet', 'ranges:sage')
+>>> METHODS["dipnet_published"].make_options({"n_particles": 200}).filter_options().resample_move
+False
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+"""
+
+from phyloc.localization.direct.dpf import DPFOptions, DPFResult, Prior, predict, run_dpf
+from phyloc.localization.direct.measurements import LinkMeasurements, LinkRanges
+from phyloc.localization.direct.method import LIKELIHOODS, DirectOptions, link_likelihood, run
+from phyloc.localization.registry import register_method
+
+
+def _register(name, inputs, label, description, **defaults):
+    if inputs.startswith("ranges:"):
+        defaults = {"likelihood": "gaussian", "ranges": inputs.split(":", 1)[1], **defaults}
+    return register_method(
+        name,
+        family="direct",
+        run=run,
+        options=DirectOptions,
+        defaults=defaults,
+        label=label,
+        inputs=inputs,
+        description=description,
+        replace=True,
+    )
+
+
+#: DiPNet (safeguarded, marginal equivalent likelihood): the library's direct localizer.
+dipnet = _register(
+    "dipnet",
+    "tables",
+    "DiPNet",
+    "DiPNet with safeguards: marginal direct likelihood, tempering, resample-move, floor",
+    likelihood="marginal",
+)
+dipnet_published = _register(
+    "dipnet_published",
+    "tables",
+    "DiPNet (published)",
+    "DiPNet Algorithm 1 as published: DiPNet eqs. (25)-(28) with the ENV, no safeguards",
+    likelihood="env",
+    safeguards=False,
+)
+_register("corr", "ranges:corr", "EL-DPF (corr)", "two-step EL-DPF on correlation-peak ranges")
+_register(
+    "first_peak", "ranges:first_peak", "EL-DPF (first peak)", "two-step EL-DPF on first-peak ranges"
+)
+_register("sage", "ranges:sage", "EL-DPF (SAGE)", "two-step EL-DPF on SAGE ranges")
+_register(
+    "sage_los",
+    "ranges:sage_los",
+    "EL-DPF (SAGE, LOS oracle)",
+    "two-step EL-DPF on SAGE ranges of LOS links only (oracle: NLOS rejected by ground truth)",
+)
+
+#: The names of the direct family's methods, in registration order.
+NAMES = ("dipnet", "dipnet_published", "corr", "first_peak", "sage", "sage_los")
+
+__all__ = [
+    "LIKELIHOODS",
+    "NAMES",
+    "DPFOptions",
+    "DPFResult",
+    "DirectOptions",
+    "LinkMeasurements",
+    "LinkRanges",
+    "Prior",
+    "dipnet",
+    "dipnet_published",
+    "link_likelihood",
+    "predict",
+    "run",
+    "run_dpf",
+]

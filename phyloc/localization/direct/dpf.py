@@ -1,19 +1,21 @@
 """The equivalent-likelihood distributed particle filter: DiPNet and its two-step twin.
 
-One filter, two likelihoods (:mod:`phyloc.localization.likelihoods`): with
-:class:`~phyloc.localization.likelihoods.DirectLikelihood` it is DiPNet (Algorithm 1 of the
-DiPNet paper), with :class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood` it is the
-two-step EL-DPF fed by a range estimator. Every agent runs in parallel:
+One filter, two kinds of likelihood (:mod:`phyloc.localization.likelihoods`): with a direct
+likelihood from correlation tables it is DiPNet (DiPNet Algorithm 1), with
+:class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood` it is the two-step EL-DPF fed
+by a range estimator. :func:`run_dpf` is one snapshot of the filter; the family's entry point
+``run(measurements, prior, rng, options)`` (:mod:`phyloc.localization.direct.method`) chains
+snapshots. Every agent runs in parallel:
 
-1. draw Q particles from its prior (Algorithm 1, line 3);
+1. draw Q particles from its prior (DiPNet Algorithm 1, line 3);
 2. for k = 1 … K: receive the neighbours' published means and covariances (line 5), compute
-   the ENV/ERV per link (line 6), weight the particles (eq. (28), line 8; log domain,
+   the ENV/ERV per link (line 6), weight the particles (DiPNet eq. (28), line 8; log domain,
    normalized with log-sum-exp, line 9) and publish the new mean and covariance (line 10).
 
 The paper stops there (``DPFOptions.published()``). Run as published from uninformative
 priors, the weights collapse after the first informative link (effective sample size ≈ 1), the
-published covariance is ≈ 0 and eq. (26) then treats neighbours as exact anchors. phyloc's
-default adds three safeguards, each an option:
+published covariance is ≈ 0 and DiPNet eq. (26) then treats neighbours as exact anchors.
+phyloc's default adds three safeguards, each an option:
 
 ``tempering``      the log-likelihood is multiplied by γ_k ≤ 1 over the first iterations;
 ``resample_move``  after weighting, systematic resampling and Metropolis–Hastings moves that
@@ -22,10 +24,20 @@ default adds three safeguards, each an option:
                    the next iteration then reweights by the change of the target only;
 ``cov_floor_m``    the published covariance is at least ``max(floor², CRB_u/dim)·I`` where
                    CRB_u is the agent's position CRB from its links' ranging information
-                   (EFIM, eq. (13)) at the current means.
+                   (the EFIM of DiPNet eq. (17), :func:`phyloc.analysis.efim.efim`) at the
+                   current means.
 
 Weights stay in the log domain; an agent whose weights are all ``−inf`` or NaN (an empty
 likelihood) falls back to uniform weights and is counted in ``n_degenerate``.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
+Information Processing over Networks 9, 2023 (regularized resampling, PF-BP eq. (32)).
 """
 
 from __future__ import annotations
@@ -38,9 +50,9 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc._validate import check_keys
+from phyloc.analysis.efim import efim, position_crb
 from phyloc.errors import ValidationError
 from phyloc.localization import particles as P
-from phyloc.localization.likelihoods import projected_variances
 
 
 @dataclass(frozen=True)
@@ -103,7 +115,7 @@ class DPFOptions:
 
     @classmethod
     def published(cls, **kw) -> DPFOptions:
-        """Algorithm 1 as published: no tempering, no resample-move, no covariance floor."""
+        """DiPNet Algorithm 1 as published: no tempering, no resample-move, no covariance floor."""
         base = {"tempering": (1.0,), "resample_move": False, "cov_floor_m": 0.0}
         return cls(**{**base, **kw})
 
@@ -120,12 +132,20 @@ class DPFOptions:
 
 @dataclass(frozen=True)
 class Prior:
-    """Per-agent prior: particles drawn from it and its log density (for MH moves).
+    """The prior of the direct family: particles per agent drawn from it, and its log density.
 
-    ``log_density(x [n_agents, Q, dim]) -> [n_agents, Q]`` may return −inf outside a support;
-    None means the prior cannot be evaluated (resample-move is then skipped).
-    ``label`` names the initialization in every output (e.g. ``"informed start"``).
-    ``log_weights [n_agents, Q]`` weight the particles (default: equal weights).
+    Attributes
+    ----------
+    particles : [n_agents, Q, dim] float64
+        Q particles per agent [m], agents in ``measurements.agent_nodes`` order (DiPNet
+        Algorithm 1, line 3).
+    log_density : callable or None
+        ``log_density(x [n_agents, Q, dim]) -> [n_agents, Q]``, may be −inf outside a support;
+        None means the prior cannot be evaluated (the resample-move safeguard is then skipped).
+    label : str
+        Names the initialization in every output (e.g. ``"informed start"``).
+    log_weights : [n_agents, Q] float64, optional
+        Log weights of the particles (default: equal weights).
     """
 
     particles: np.ndarray
@@ -136,7 +156,7 @@ class Prior:
 
 @dataclass(frozen=True, eq=False)
 class DPFResult:
-    """Output of :func:`run_dpf` for one snapshot.
+    """Output of :func:`run_dpf` for one snapshot (the family's ``run`` maps it to a Result).
 
     Attributes
     ----------
@@ -166,14 +186,14 @@ class DPFResult:
     annealing_steps: int = 0
 
 
-
-
-
-
-
-
 def _floor(cov, likelihood, centers, agent_nodes, floor_m):
-    """Add the covariance floor: max(floor², CRB_u/dim) per axis (EFIM of eq. (13))."""
+    """Add the covariance floor: max(floor², CRB_u/dim) per axis.
+
+    ``CRB_u = tr J_u⁻¹`` from the EFIM of DiPNet eq. (17) (:func:`phyloc.analysis.efim.efim`,
+    neighbours at their published means, the links' ranging information ``likelihood.nu``);
+    a singular ``J_u`` (no links, or links that leave a direction undetermined) adds no CRB
+    term.
+    """
     if floor_m <= 0:
         return cov
     dim = cov.shape[1]
@@ -183,14 +203,8 @@ def _floor(cov, likelihood, centers, agent_nodes, floor_m):
         j0, j1 = csr.offsets[a], csr.offsets[a + 1]
         crb = 0.0  # no links, or links that leave a direction undetermined: no CRB term
         if j1 > j0:
-            diff = centers[csr.rx[j0:j1]] - centers[csr.tx[j0:j1]]
-            n = np.linalg.norm(diff, axis=1)
-            ok = n > 1e-12
-            e = diff[ok] / n[ok, None]
-            J = np.einsum("l,li,lj->ij", likelihood.nu[j0:j1][ok], e, e)
-            ev = np.linalg.eigvalsh(J)
-            if ev.size and ev.min() > 1e-12 * max(ev.max(), 1e-300):
-                crb = float(np.sum(1.0 / ev)) / dim
+            J = efim(centers[agent_nodes[a]], centers[csr.tx[j0:j1]], likelihood.nu[j0:j1])
+            crb = float(position_crb(J)) / dim
         # the CRB term only raises the floor where the links determine the position
         var = max(floor_m**2, crb if np.isfinite(crb) else 0.0)
         eig = np.linalg.eigvalsh(out[a])
@@ -202,27 +216,35 @@ def _floor(cov, likelihood, centers, agent_nodes, floor_m):
 def run_dpf(
     likelihood,
     prior: Prior,
-    positions,
+    anchor_positions,
     is_anchor,
     rng: np.random.Generator,
     options: DPFOptions = DPFOptions(),
 ) -> DPFResult:
     """Run the EL-DPF on one snapshot (DiPNet Algorithm 1 with optional safeguards).
 
+    The single-snapshot step of the direct family's ``run``; it sees no agent position.
+
     Parameters
     ----------
-    likelihood : DirectLikelihood or GaussianRangeLikelihood
+    likelihood : DirectLikelihood, MarginalDirectLikelihood or GaussianRangeLikelihood
+        The link likelihood of this snapshot.
     prior : Prior
         ``particles [n_agents, Q, dim]`` drawn from each agent's prior.
-    positions : [n_nodes, dim]
-        Known positions; only the anchors' rows are read (agents' rows are ignored).
+    anchor_positions : [n_anchors, dim] float64
+        Known anchor positions [m], in the node order of ``is_anchor``.
     is_anchor : [n_nodes] bool
+        Which nodes are anchors; the others are the agents, in increasing node order.
     rng : numpy.random.Generator
+        Stream of the resample-move safeguard (unused by the published filter).
     options : DPFOptions
+
+    Returns
+    -------
+    DPFResult
     """
     t0 = time.perf_counter()
     is_anchor = np.asarray(is_anchor, bool)
-    positions = np.asarray(positions, dtype=np.float64)
     agent_nodes = np.flatnonzero(~is_anchor)
     X = np.array(prior.particles, dtype=np.float64, copy=True)
     if X.ndim != 3:
@@ -230,13 +252,22 @@ def run_dpf(
     n_agents, Q, dim = X.shape
     if n_agents != agent_nodes.size:
         raise ValidationError("prior.particles", f"{n_agents} agents", f"{agent_nodes.size}")
-    if positions.shape != (is_anchor.size, dim):
-        raise ValidationError("positions", f"shape {positions.shape}", f"[n_nodes, {dim}]")
+    anchors = np.asarray(anchor_positions, dtype=np.float64)
+    n_anchors = is_anchor.size - agent_nodes.size
+    if anchors.size == 0 and n_anchors == 0:
+        anchors = anchors.reshape(0, dim)
+    if anchors.shape != (n_anchors, dim):
+        raise ValidationError(
+            "anchor_positions", f"shape {anchors.shape}", f"[n_anchors = {n_anchors}, {dim}]"
+        )
+    positions = np.zeros((is_anchor.size, dim))  # agents' rows are set from the prior below
+    positions[is_anchor] = anchors
     logp = prior.log_density
     moving = options.resample_move and logp is not None
     lp = logp(X) if logp is not None else np.zeros((n_agents, Q))
     w_init = 0.0 if prior.log_weights is None else np.asarray(prior.log_weights, float)
-    lw0, n_bad = P.normalize_log_weights(np.where(np.isfinite(lp), w_init, -np.inf))  # eq. (27): w^(p,0)
+    # DiPNet eq. (27): the initial weights w^(p,0)
+    lw0, n_bad = P.normalize_log_weights(np.where(np.isfinite(lp), w_init, -np.inf))
 
     centers = positions.copy()
     covs = np.zeros((is_anchor.size, dim, dim))
@@ -255,7 +286,7 @@ def run_dpf(
     for k in range(1, K_it + 1):
         new_fn = _frozen_loglik(likelihood, centers, covs, 1.0 if moving else options.gamma(k))
         ll_new = new_fn(X)
-        if not moving:  # eq. (28): reweight the prior particles by the product of ELs
+        if not moving:  # DiPNet eq. (28): reweight the prior particles by the product of ELs
             lw, bad = P.normalize_log_weights(lw0 + ll_new)
             n_bad += bad
             ess_hist[k - 1] = P.effective_sample_size(lw)
@@ -326,8 +357,17 @@ def _anneal(X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options):
         X, lp, ll_old, ll_new = P.resample_agents(X, lw, rng, lp, ll_old, ll_new)
         lw = np.full((n_agents, Q), -np.log(Q))
         X, lp, ll_old, ll_new = P.mh_moves(
-            X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng,
-            n_moves=options.n_moves, move_scale=options.move_scale,
+            X,
+            lp,
+            ll_old,
+            ll_new,
+            lam,
+            old_fn,
+            new_fn,
+            logp,
+            rng,
+            n_moves=options.n_moves,
+            move_scale=options.move_scale,
         )
     return X, lp, ll_new, lw, ess_min, steps
 
@@ -353,66 +393,30 @@ def _next_lambda(lw, delta, lam, ess_target):
     return np.where(lam >= 1.0, 1.0, np.minimum(lam + step, 1.0))
 
 
-
-
-
-
-
-
-def projected_variance_of(centers, covs, rx, tx):
-    """Re-export of :func:`~phyloc.localization.likelihoods.projected_variances`."""
-    return projected_variances(centers, covs, rx, tx)
-
-
-def run_tracking(
-    likelihoods,
-    prior: Prior,
-    positions,
-    is_anchor,
+def predict(
+    result: DPFResult,
     rng: np.random.Generator,
-    options: DPFOptions = DPFOptions(),
     *,
     process_std_m: float = 1.0,
     resample_ess: float = 0.5,
     regularize: bool = True,
-) -> list[DPFResult]:
-    """Track agents over snapshots with the EL-DPF.
+) -> tuple[np.ndarray, np.ndarray]:
+    """Prior particles of the next snapshot from the belief of ``result``.
 
-    Snapshot 0 runs :func:`run_dpf` from ``prior``. Each later snapshot predicts the particles
-    with a random-walk motion model (``x_t = x_{t−1} + N(0, process_std_m²·I)``; DiPNet §II-C:
-    a state transition with the first-order Markov assumption), then runs the filter's
-    message-passing iterations with the predicted particles as prior (eq. (28) reweighting; no
-    Metropolis moves, since the predicted density cannot be evaluated). After each snapshot the
-    particles are resampled systematically when the ESS falls below ``resample_ess``·Q, and
-    jittered by a Gaussian kernel of Silverman's bandwidth when ``regularize`` (eq. (32) of the
-    PF-BP paper: regularized particle filter).
+    Systematic resampling when the ESS falls below ``resample_ess``·Q, Gaussian jitter of
+    Silverman's bandwidth when ``regularize`` (regularized particle filter, PF-BP eq. (32)),
+    then the random-walk motion model ``x_t = x_{t−1} + N(0, process_std_m²·I)`` (DiPNet §II-C:
+    a state transition with the first-order Markov assumption).
 
-    Parameters
-    ----------
-    likelihoods : sequence of likelihood objects, one per snapshot
-    positions : [T, n_nodes, dim]  known (anchor) positions per snapshot
+    Returns
+    -------
+    particles : [n_agents, Q, dim] float64
+    log_weights : [n_agents, Q] float64
     """
-    positions = np.asarray(positions, dtype=np.float64)
-    if positions.ndim != 3 or positions.shape[0] != len(likelihoods):
-        raise ValidationError(
-            "positions",
-            f"shape {positions.shape}",
-            f"[T = {len(likelihoods)} snapshots, n_nodes, dim]",
-        )
     q = v.positive("process_std_m", process_std_m, allow_zero=True)
-    out = [run_dpf(likelihoods[0], prior, positions[0], is_anchor, rng, options)]
-    fixed = dataclasses.replace(options, resample_move=False)
-    for t in range(1, len(likelihoods)):
-        prev = out[-1]
-        X, lw = prev.particles, prev.log_weights
-        Q = X.shape[1]
-        if np.any(P.effective_sample_size(lw) < resample_ess * Q):
-            X, lw = P.resample_regularize(X, lw, rng, regularize)
-        X = X + q * rng.standard_normal(X.shape)
-        out.append(
-            run_dpf(
-                likelihoods[t], Prior(X, None, prior.label, lw), positions[t], is_anchor, rng, fixed
-            )
-        )
-    return out
-
+    X, lw = result.particles, result.log_weights
+    Q = X.shape[1]
+    if np.any(P.effective_sample_size(lw) < resample_ess * Q):
+        X, lw = P.resample_regularize(X, lw, rng, regularize)
+    X = X + q * rng.standard_normal(X.shape)
+    return X, lw

@@ -1,0 +1,87 @@
+"""Plain-NumPy twins of the direct family's numba kernels (``phyloc.localization._kernels``).
+
+Test code only: tests import them (``from naive_direct import ...``) and
+``benchmarks/bench_dipnet.py`` loads this file through ``benchmarks._reference.naive`` for its
+speed-up figures. The table interpolation comes from ``tests/naive_phy.py``, loaded by path so
+that both ways of loading this file find it.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def _naive_phy():
+    """The module ``tests/naive_phy.py`` beside this file."""
+    mod = sys.modules.get("naive_phy")
+    if mod is None:
+        path = Path(__file__).with_name("naive_phy.py")
+        spec = importlib.util.spec_from_file_location("naive_phy", path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+    return mod
+
+
+def direct_loglik_numpy(
+    particles, offsets, nb_node, nb_row, nb_scale, centers, values, inv_h, order
+):
+    """Twin of ``direct_loglik_kernel``: DiPNet eq. (25), one link at a time."""
+    interp_numpy = _naive_phy().interp_numpy
+
+    n_agents, Q, _ = particles.shape
+    out = np.zeros((n_agents, Q))
+    for a in range(n_agents):
+        for j in range(offsets[a], offsets[a + 1]):
+            d = np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
+            f = interp_numpy(values, np.full(Q, nb_row[j]), d * inv_h, order)
+            out[a] += nb_scale[j] * np.abs(f) ** 2
+    return out
+
+
+def gauss_loglik_numpy(particles, offsets, nb_node, ranges, inv_var, centers):
+    """Twin of ``gauss_loglik_kernel``: Gaussian ranges with the ERV of DiPNet eq. (18)."""
+    n_agents, Q, _ = particles.shape
+    out = np.zeros((n_agents, Q))
+    for a in range(n_agents):
+        for j in range(offsets[a], offsets[a + 1]):
+            d = np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
+            out[a] -= 0.5 * inv_var[j] * (d - ranges[j]) ** 2
+    return out
+
+
+def systematic_resample_numpy(weights, u0, n):
+    """Twin of ``systematic_resample_kernel``: the textbook searchsorted resampler."""
+    edges = np.cumsum(weights)
+    edges[-1] = max(edges[-1], 1.0)
+    u = (np.arange(n) + u0) / n
+    return np.minimum(np.searchsorted(edges, u, side="left"), weights.size - 1)
+
+
+def mixture_loglik_numpy(
+    particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, floor, ways, gamma, centers
+):
+    """Twin of ``mixture_loglik_kernel``: the marginal peak-mixture likelihood, vectorized."""
+    n_agents, Q, _ = particles.shape
+    out = np.zeros((n_agents, Q))
+    for a in range(n_agents):
+        for j in range(offsets[a], offsets[a + 1]):
+            x = ways * np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
+            sl = slice(pk_off[j], pk_off[j + 1])
+            v = 1.0 / pk_c[sl] + s2[j]
+            terms = (pk_h[sl] - 0.5 * np.log1p(pk_c[sl] * s2[j]))[None, :] - 0.5 * (
+                x[:, None] - pk_d[sl][None, :]
+            ) ** 2 / v[None, :]
+            terms = np.concatenate([np.full((Q, 1), floor[j]), terms], axis=1)
+            m = terms.max(axis=1)
+            out[a] += gamma * (m + np.log(np.exp(terms - m[:, None]).sum(axis=1)))
+    return out
