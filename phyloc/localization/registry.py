@@ -102,6 +102,9 @@ class Method:
         from_dict = getattr(self.options, "from_dict", None)
         if from_dict is not None:
             return from_dict(merged, section)
+        from phyloc._validate import check_keys
+
+        check_keys(merged, [f.name for f in dataclasses.fields(self.options)], section)
         return self.options(**merged)
 
 
