@@ -4,18 +4,18 @@ A recipe of ``kind = "localization"`` runs, for every scenario token, network si
 realization: a network (``[network]``, anchor-free and fully meshed in the paper), channel draws,
 received signals and correlation tables, the range estimators, and then every method of
 ``experiment.methods`` under every initialization of ``experiment.inits`` — all on the *same*
-waveforms and, per initialization, from the *same* prior particles:
+waveforms and, per initialization, from the *same* prior particles::
 
-``dipnet``            DiPNet with phyloc's safeguards: the marginal equivalent likelihood
-                      (:class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`,
-                      DiPNet eq. (22) marginalized over the neighbour's projected uncertainty
-                      instead of the ENV of DiPNet eq. (26)), adaptive tempering,
-                      resample-move, covariance floor (:class:`~phyloc.localization.DPFOptions`)
-``dipnet_published``  DiPNet Algorithm 1 as published: DiPNet eqs. (25)–(28) with the ENV, no
-                      safeguards
-``corr`` / ``first_peak`` / ``sage``   the two-step EL-DPF on that estimator's ranges with the
-                      ZZB ranging variance (DiPNet §V-A), same safeguards as ``dipnet``
-``sage_los``          SAGE on LOS links only — an oracle benchmark (ground-truth NLOS rejection)
+    ``dipnet``            DiPNet with phyloc's safeguards: the marginal equivalent likelihood
+                          (:class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`,
+                          DiPNet eq. (22) marginalized over the neighbour's projected uncertainty
+                          instead of the ENV of DiPNet eq. (26)), adaptive tempering,
+                          resample-move, covariance floor (:class:`~phyloc.localization.DPFOptions`)
+    ``dipnet_published``  DiPNet Algorithm 1 as published: DiPNet eqs. (25)–(28) with the ENV, no
+                          safeguards
+    ``corr`` / ``first_peak`` / ``sage``   the two-step EL-DPF on that estimator's ranges with the
+                          ZZB ranging variance (DiPNet §V-A), same safeguards as ``dipnet``
+    ``sage_los``          SAGE on LOS links only — an oracle benchmark (ground-truth NLOS rejection)
 
 The methods are the direct family of :data:`phyloc.localization.METHODS` (any registered
 direct method runs here too): per realization the experiment builds one
@@ -23,13 +23,13 @@ direct method runs here too): per realization the experiment builds one
 estimator a method's ``inputs`` names — and calls ``method.run(measurements, prior, rng,
 method.make_options([localization]))``; the truth enters only the metrics.
 
-Initializations (labelled in every figure name):
+Initializations (labelled in every figure name)::
 
-``truth_free`` (token ``<s>``)  Gaussian priors around a coarse two-step solution (MDS → SMACOF
-                      on the correlation-peak ranges; anchors fix the frame when present)
-``informed`` (``<s>_informed``)  Gaussian priors around the truth plus N(0, σ0²) — an informed
-                      start, not a truth-free result
-``gauge`` (``<s>_gauge``)  the paper's uninformative anchor-free gauge priors (shows the pitfall)
+    ``truth_free`` (token ``<s>``)  Gaussian priors around a coarse two-step solution (MDS → SMACOF
+                          on the correlation-peak ranges; anchors fix the frame when present)
+    ``informed`` (``<s>_informed``)  Gaussian priors around the truth plus N(0, σ0²) — an informed
+                          start, not a truth-free result
+    ``gauge`` (``<s>_gauge``)  the paper's uninformative anchor-free gauge priors (shows the pitfall)
 
 Figures: ``<method>.<token>.agents_<n>.framework_rmse_m`` (DiPNet eq. (4), pooled over
 realizations),

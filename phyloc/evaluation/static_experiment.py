@@ -14,17 +14,17 @@ communication range, one-sided exponential ranging errors of mean 0.38 m, POA-NB
 2. **Localization** (POA-NBP Figs. 10, 11, Table I): every method of ``experiment.methods``,
    looked up in :data:`phyloc.localization.METHODS` (family ``"static"``) and run as
    ``run(measurements, prior, rng, options)`` on the scenario's truth-free measurements. The
-   paper's comparison (:data:`METHODS`; see :mod:`phyloc.localization.static`):
+   paper's comparison (:data:`METHODS`; see :mod:`phyloc.localization.static`)::
 
-   ``poa_nbp``           NBP with the uniform proposal in each agent's POA polygon (POA-NBP
-                         eq. (21); ``N_E = poa_n_edges``, ``N_FS = poa_n_fs``)
-   ``nbp_ellipse``       NBP with the uniform proposal in the ellipse outer-approximation
-                         ('NBP ell.'; ``poa_n_fs`` iterations, like the polygons)
-   ``nbp_min_entropy``   NBP sampling the incoming message of least entropy ('NBP min.')
-   ``nbp_mixture``       NBP sampling the mixture of incoming messages (plus a uniform fraction)
-   ``nbp_parsimonious``  NBP sampling the previous belief ('NBP par.')
-   ``pbp``               parametric (Gaussian) BP ('PBP')
-   ``wls``               weighted least squares by Gauss–Newton ('WLS')
+       ``poa_nbp``           NBP with the uniform proposal in each agent's POA polygon (POA-NBP
+                             eq. (21); ``N_E = poa_n_edges``, ``N_FS = poa_n_fs``)
+       ``nbp_ellipse``       NBP with the uniform proposal in the ellipse outer-approximation
+                             ('NBP ell.'; ``poa_n_fs`` iterations, like the polygons)
+       ``nbp_min_entropy``   NBP sampling the incoming message of least entropy ('NBP min.')
+       ``nbp_mixture``       NBP sampling the mixture of incoming messages (plus a uniform fraction)
+       ``nbp_parsimonious``  NBP sampling the previous belief ('NBP par.')
+       ``pbp``               parametric (Gaussian) BP ('PBP')
+       ``wls``               weighted least squares by Gauss–Newton ('WLS')
 
    A method's options are its registered defaults (e.g. the proposal of an NBP variant),
    updated by the recipe table of its options class (``[localization.nbp]``,
@@ -49,7 +49,8 @@ the outer-approximation of ``poa_nbp`` and ``nbp_ellipse``, the MDS start of ``p
 Errors "after convergence" are those of the last iteration (``n_iterations`` >= convergence).
 
 Figures (``results.json``; ``<m>`` a method, ``<ne>`` an ``N_E``, ``<l>`` an iteration, ``<n>``
-an ``N_S`` of the sweep, ``<x>`` an outage threshold written with ``p`` for the decimal point)
+an ``N_S`` of the sweep, ``<x>`` an outage threshold written with ``p`` for the decimal point)::
+
     ``poa.containment_fraction``        fraction of (topology, agent) polygons of the proposal
                                         setting (``poa_n_edges``, ``poa_n_fs``) containing the
                                         agent; ``poa.ne<ne>.containment_fraction`` per N_E
@@ -72,6 +73,7 @@ an ``N_S`` of the sweep, ``<x>`` an outage threshold written with ``p`` for the 
     ``<m>.ns<n>.mean_error_m``, ``<m>.ns<n>.outage_<x>m``, ``<m>.ns<n>.time_per_node_iteration_s``
                                         the sample sweep (Fig. 12)
     ``poa_nbp_vs_<m>.time_to_convergence_ratio``   ``poa_nbp`` over NBP variant ``<m>``
+
 Series: ``iteration``; ``<m>.mean_error_m`` per iteration; ``poa.ne<ne>.area_m2`` and
 ``ellipse.area_m2`` per POA iteration; ``outage_threshold_m`` (grid) with ``<m>.outage`` and
 ``<m>.ns<n>.outage``.
@@ -81,8 +83,8 @@ everything else is identical for a seed whatever the worker count.
 
 References
 ----------
-.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-   Indoor Localization." ("POA-NBP").
+R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations

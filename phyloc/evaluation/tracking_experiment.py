@@ -9,14 +9,14 @@ vector toward the centre, CA/CV motion with ``dt_s``, ``accel_std``), range meas
 prior of PF-BP eq. (31) (:func:`~phyloc.localization.tracking.paper_prior`, ``sigma_p``) and
 every method of ``experiment.methods`` — any method of the ``"tracking"`` family of
 :data:`phyloc.localization.METHODS` — on the *same* measurements (without the truth) from the
-*same* prior:
+*same* prior::
 
-``pfbp``      PF-BP, PF-BP Algorithm 1 (:func:`~phyloc.localization.tracking.run_pfbp`)
-``pfbp_reg``  PF-BP with the regularization of PF-BP eqs. (32), (33) ("reg" in the paper)
-``sirbp``     bootstrap-particle BP, PF-BP §V-B (:func:`~phyloc.localization.tracking.run_sirbp`)
-``spbp``      sigma-point BP (:func:`~phyloc.localization.tracking.run_spbp`)
-``edh``       centralized EDH particle-flow filter, PF-BP Appendix B
-              (:func:`~phyloc.localization.tracking.run_edh`)
+    ``pfbp``      PF-BP, PF-BP Algorithm 1 (:func:`~phyloc.localization.tracking.run_pfbp`)
+    ``pfbp_reg``  PF-BP with the regularization of PF-BP eqs. (32), (33) ("reg" in the paper)
+    ``sirbp``     bootstrap-particle BP, PF-BP §V-B (:func:`~phyloc.localization.tracking.run_sirbp`)
+    ``spbp``      sigma-point BP (:func:`~phyloc.localization.tracking.run_spbp`)
+    ``edh``       centralized EDH particle-flow filter, PF-BP Appendix B
+                  (:func:`~phyloc.localization.tracking.run_edh`)
 
 Method options are ``[localization.<method>]`` tables (the keys of the method's options
 dataclass, :class:`~phyloc.localization.tracking.PFBPOptions`,
@@ -29,7 +29,8 @@ averaged over the true trajectories of all runs (the Bayesian bound, ``pcrlb.*``
 ``pcrlb_cond.*`` averages the per-trajectory bounds instead (the conditional bound, never
 lower; see :mod:`phyloc.analysis.pcrlb`).
 
-Measurements (``experiment.measurements``)
+Measurements (``experiment.measurements``)::
+
     ``"gaussian"``  the paper's model (PF-BP eq. (8)): ``z = ‖p_i − p_j‖ + N(0, σ²)``,
                     ``σ = sigma_r``, for every pair within ``comm_range_m``
                     (:func:`~phyloc.evaluation.range_scenarios.simulate_scenario`).
@@ -52,7 +53,8 @@ Measurements (``experiment.measurements``)
 Figures (``results.json``; ``<m>`` a method, ``<s>`` a scenario token, ``<k>`` a time step of
 ``experiment.report_steps`` (≤ ``n_steps``), ``<ko>`` one of ``experiment.outage_steps``,
 ``<x>`` a threshold of ``experiment.outage_thresholds_m`` written with ``p`` for the decimal
-point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)
+point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
+
     ``<m>.<s>.k<k>.rmse_p_m``        position RMSE at step k over runs and agents [m] (Fig. 4, 7)
     ``<m>.<s>.k<k>.rmse_v_m_s``      velocity RMSE [m/s]
     ``<m>.<s>.k<k>.rmse_a_m_s2``     acceleration RMSE [m/s²] (CA only)
@@ -73,6 +75,7 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)
     ``sage.<s>.range_rmse_m``, ``sage.<s>.valid_fraction``, ``sage.<s>.sigma_m``   (``"sage"``
                                      only) SAGE range RMSE over valid links, fraction of valid
                                      links, mean σ given to the trackers
+
 Series: ``k`` (1 … K); ``<m>.<s>.rmse_p_m`` / ``rmse_v_m_s`` / ``rmse_a_m_s2`` and
 ``pcrlb.<s>.p_m`` / ``v_m_s`` / ``a_m_s2`` (and ``pcrlb_cond.*``) per step;
 ``outage_threshold_m`` (log grid) with

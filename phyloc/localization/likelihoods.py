@@ -7,7 +7,7 @@ projected neighbour variance ``σ²_{v→uv} = e_uvᵀ C_v e_uv`` (DiPNet eq. (1
 :class:`DirectLikelihood` (DiPNet)
     ``log p̃ = |f_uv(‖p_u − p̂_v‖)|² / (σ̃²_uv ‖S‖²)`` (DiPNet eq. (25)) from the link's
     correlation table, with the equivalent noise variance (ENV) of DiPNet eq. (26)
-    ``σ̃² = σ² + 2ω²σ²_{v→uv}|α̂|² Σ|S_n|²n² / c0²``.
+    ``σ̃² = σ² + 2ω²σ²_{v→uv}·|α̂|²·Σ|S_n|²n² / c0²``.
 :class:`GaussianRangeLikelihood` (two-step EL-DPF)
     ``log p̃ = −(‖p_u − p̂_v‖ − r̂_uv)² / (2(var_uv + σ²_{v→uv}))``: the Gaussian ranging model
     with the equivalent ranging variance (ERV) of DiPNet eq. (18).
@@ -84,7 +84,7 @@ class DirectLikelihood:
     interpolation : str
         Table interpolation (see :mod:`phyloc.phy.correlation`).
     window_m : (float, float)
-        Where the amplitude |α̂| of DiPNet eq. (21) is estimated (the correlation peak).
+        Where the amplitude ``|α̂|`` of DiPNet eq. (21) is estimated (the correlation peak).
     ways : int
         1 for synchronized one-way ranging, 2 for two-way (the table's distance axis is then
         the round trip, so the likelihood is evaluated at ``2‖p_u − p̂_v‖``).
@@ -233,7 +233,7 @@ class MarginalDirectLikelihood:
     ``outlier_nats``. Without it, while neighbours are uncertain (large σ²_{v→uv}) the
     smoothed peaks act like a Gaussian ranging model around whatever peak is strongest —
     including an NLOS peak 90 m late — and a minority of NLOS links can pull an agent to a
-    wrong solution; DiPNet eq. (25)'s bounded |f|² evidence has this robustness by construction.
+    wrong solution; DiPNet eq. (25)'s bounded ``|f|²`` evidence has this robustness by construction.
     ``outlier_nats=inf`` gives the plain marginal.
     """
 

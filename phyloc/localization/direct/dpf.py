@@ -15,17 +15,17 @@ snapshots. Every agent runs in parallel:
 The paper stops there (``DPFOptions.published()``). Run as published from uninformative
 priors, the weights collapse after the first informative link (effective sample size ≈ 1), the
 published covariance is ≈ 0 and DiPNet eq. (26) then treats neighbours as exact anchors.
-phyloc's default adds three safeguards, each an option:
+phyloc's default adds three safeguards, each an option::
 
-``tempering``      the log-likelihood is multiplied by γ_k ≤ 1 over the first iterations;
-``resample_move``  after weighting, systematic resampling and Metropolis–Hastings moves that
-                   leave the current target ``prior(x)·exp(γ_k Σ_v log p̃)`` invariant
-                   (regularization by Gaussian random-walk proposals scaled to the cloud);
-                   the next iteration then reweights by the change of the target only;
-``cov_floor_m``    the published covariance is at least ``max(floor², CRB_u/dim)·I`` where
-                   CRB_u is the agent's position CRB from its links' ranging information
-                   (the EFIM of DiPNet eq. (17), :func:`phyloc.analysis.efim.efim`) at the
-                   current means.
+    ``tempering``      the log-likelihood is multiplied by γ_k ≤ 1 over the first iterations;
+    ``resample_move``  after weighting, systematic resampling and Metropolis–Hastings moves that
+                       leave the current target ``prior(x)·exp(γ_k Σ_v log p̃)`` invariant
+                       (regularization by Gaussian random-walk proposals scaled to the cloud);
+                       the next iteration then reweights by the change of the target only;
+    ``cov_floor_m``    the published covariance is at least ``max(floor², CRB_u/dim)·I`` where
+                       CRB_u is the agent's position CRB from its links' ranging information
+                       (the EFIM of DiPNet eq. (17), :func:`phyloc.analysis.efim.efim`) at the
+                       current means.
 
 Weights stay in the log domain; an agent whose weights are all ``−inf`` or NaN (an empty
 likelihood) falls back to uniform weights and is counted in ``n_degenerate``.

@@ -45,8 +45,8 @@ Examples
 
 References
 ----------
-.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-   Indoor Localization." ("POA-NBP").
+R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+Indoor Localization." ("POA-NBP").
 """
 
 from phyloc.localization.registry import register_method

@@ -7,8 +7,8 @@ kernel is tested against a plain-NumPy reference twin, which is test code
 
 References
 ----------
-.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-   Indoor Localization." ("POA-NBP").
+R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations

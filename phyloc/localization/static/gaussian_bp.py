@@ -41,8 +41,8 @@ start at the same point (a zero distance has no gradient).
 
 References
 ----------
-.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-   Indoor Localization." ("POA-NBP"; its refs. [19] for PBP and [5] for WLS).
+R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+Indoor Localization." ("POA-NBP"; its refs. [19] for PBP and [5] for WLS).
 """
 
 from __future__ import annotations

@@ -59,7 +59,7 @@ per iteration at ``N_S = 200`` in the POA-NBP §V network), so an absolute thres
 never met; the plateau of ``c_l`` is the truth-free counterpart of POA-NBP §V footnote 5 (the
 average error no longer changes notably). ``stop_on_convergence`` ends the run there.
 
-**Cost**: the O(|S_{→j}|·N_S²) KDE evaluation (POA-NBP eq. (8)) is :func:`kde_logpdf_kernel`
+**Cost**: the ``O(|S_{→j}|·N_S²)`` KDE evaluation (POA-NBP eq. (8)) is :func:`kde_logpdf_kernel`
 (numba, serial) and the LSCV score, O(N_S²) per message up to ``lscv_max_samples``, is
 :func:`lscv_grid_kernel`, both in the private module
 :mod:`phyloc.localization.static._nbp_kernels` (their plain-NumPy references are test code,
@@ -77,8 +77,8 @@ Support regions: any object with ``.area`` [m²], ``.contains(points [n, 2]) -> 
 
 References
 ----------
-.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-   Indoor Localization." ("POA-NBP").
+R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations

@@ -30,8 +30,8 @@ rounding never cuts off a feasible point. Numba kernels live in
 
 References
 ----------
-.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-   Indoor Localization." ("POA-NBP").
+R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
+Indoor Localization." ("POA-NBP").
 """
 
 from __future__ import annotations
