@@ -78,7 +78,7 @@ def test_generate_info_and_verify_from_the_command_line(tmp_path, capsys, monkey
     recipe = tmp_path / "d.toml"
     recipe.write_text(
         'kind = "dataset"\nname = "d"\nseed = 3\n[system]\nn_subcarriers = 65\n'
-        "[network]\nn_agents = 3\n[channel]\nscenario = \"awgn\"\n"
+        '[network]\nn_agents = 3\n[channel]\nscenario = "awgn"\n'
         "[dataset]\nrealizations = 2\nshard_size = 1\n"
     )
     h5 = tmp_path / "d.h5"

@@ -29,7 +29,8 @@ Initializations (labelled in every figure name)::
                           on the correlation-peak ranges; anchors fix the frame when present)
     ``informed`` (``<s>_informed``)  Gaussian priors around the truth plus N(0, σ0²) — an informed
                           start, not a truth-free result
-    ``gauge`` (``<s>_gauge``)  the paper's uninformative anchor-free gauge priors (shows the pitfall)
+    ``gauge`` (``<s>_gauge``)  the paper's uninformative anchor-free gauge priors (shows the
+                          pitfall)
 
 Figures: ``<method>.<token>.agents_<n>.framework_rmse_m`` (DiPNet eq. (4), pooled over
 realizations),

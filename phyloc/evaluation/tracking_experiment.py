@@ -13,7 +13,8 @@ every method of ``experiment.methods`` — any method of the ``"tracking"`` fami
 
     ``pfbp``      PF-BP, PF-BP Algorithm 1 (:func:`~phyloc.localization.tracking.run_pfbp`)
     ``pfbp_reg``  PF-BP with the regularization of PF-BP eqs. (32), (33) ("reg" in the paper)
-    ``sirbp``     bootstrap-particle BP, PF-BP §V-B (:func:`~phyloc.localization.tracking.run_sirbp`)
+    ``sirbp``     bootstrap-particle BP, PF-BP §V-B
+                  (:func:`~phyloc.localization.tracking.run_sirbp`)
     ``spbp``      sigma-point BP (:func:`~phyloc.localization.tracking.run_spbp`)
     ``edh``       centralized EDH particle-flow filter, PF-BP Appendix B
                   (:func:`~phyloc.localization.tracking.run_edh`)
