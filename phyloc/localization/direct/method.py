@@ -45,8 +45,8 @@ DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wy
 P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
 Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
-cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
-Information Processing over Networks 9, 2023 (regularized resampling, PF-BP eq. (32)).
+cooperative localization and navigation with embedded particle flow"
+(regularized resampling, PF-BP eq. (32)).
 """
 
 from __future__ import annotations

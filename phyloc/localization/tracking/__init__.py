@@ -45,8 +45,7 @@ Examples
 References
 ----------
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
-cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
-Information Processing over Networks 9, 2023.
+cooperative localization and navigation with embedded particle flow."
 SP-BP: F. Meyer, O. Hlinka and F. Hlawatsch, "Sigma point belief propagation," IEEE Signal
 Processing Letters 21(2), pp. 145–149, 2014.
 """

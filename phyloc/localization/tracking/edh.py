@@ -13,8 +13,7 @@ eq. (44)); resample systematically; update the covariance by a UKF at the poster
 References
 ----------
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
-cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
-Information Processing over Networks 9, 2023 (Appendix B).
+cooperative localization and navigation with embedded particle flow" (Appendix B).
 """
 
 from __future__ import annotations

@@ -24,8 +24,7 @@ used by the EDH filter).
 References
 ----------
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
-cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
-Information Processing over Networks 9, 2023.
+cooperative localization and navigation with embedded particle flow."
 """
 
 from __future__ import annotations
