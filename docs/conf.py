@@ -59,15 +59,48 @@ html_theme_options = {"navigation_with_keys": False, "show_toc_level": 2}
 
 def _dataset_layout() -> None:
     """Write ``_generated/dataset_layout.txt``: the layout of a tiny dataset written now."""
-    out = HERE / "_generated" / "dataset_layout.txt"
-    out.parent.mkdir(exist_ok=True)
     buf = io.StringIO()
     script = runpy.run_path(str(HERE / "examples" / "dataset_layout.py"), run_name="layout")
     with contextlib.redirect_stdout(buf):
         script["main"]()
-    text = buf.getvalue()
+    _write("dataset_layout.txt", buf.getvalue())
+
+
+def _write(name: str, text: str) -> None:
+    out = HERE / "_generated" / name
+    out.parent.mkdir(exist_ok=True)
     if not out.exists() or out.read_text() != text:
         out.write_text(text)
 
 
+def _methods_table() -> None:
+    """Write ``_generated/methods.rst``: every registered method, read from the registry now."""
+    from phyloc.localization import METHODS
+
+    rows = [
+        ".. list-table::",
+        "   :header-rows: 1",
+        "   :widths: 14 8 34 14 30",
+        "",
+        "   * - name",
+        "     - family",
+        "     - label: description",
+        "     - inputs",
+        "     - options (defaults of the named variant)",
+    ]
+    for name in METHODS:
+        m = METHODS[name]
+        defaults = ", ".join(f"``{k} = {v!r}``" for k, v in m.defaults.items())
+        options = f":class:`~{m.options.__module__}.{m.options.__qualname__}`"
+        rows += [
+            f"   * - ``{name}``",
+            f"     - {m.family}",
+            f"     - {m.label}: {m.description}" if m.description else f"     - {m.label}",
+            f"     - ``{m.inputs}``" if m.inputs else "     -",
+            f"     - {options}" + (f"; {defaults}" if defaults else ""),
+        ]
+    _write("methods.rst", "\n".join(rows) + "\n")
+
+
 _dataset_layout()
+_methods_table()

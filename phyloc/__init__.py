@@ -3,6 +3,21 @@
 The package is layered (see ``DESIGN.md``): :mod:`phyloc.phy` and :mod:`phyloc.channels` at the
 bottom, :mod:`phyloc.network` beside them, ranging and localization above, datasets and
 evaluation on top, and the command line (:mod:`phyloc.cli`) last.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
+
+WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
+updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
 """
 
 from importlib.metadata import PackageNotFoundError, version

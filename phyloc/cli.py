@@ -1,23 +1,37 @@
 """The ``phyloc`` command line.
 
-Commands
-    ``phyloc bench [phy|channels|all] [--quick] [--json PATH]``
-        Run benchmarks; print cost per unit of work and ratios to references.
-    ``phyloc evaluate RECIPE [--fast] [--out DIR] [--json PATH] [--workers N | --scheduler ADDR]
-    [--plugin MODULE]``
-        Run an experiment recipe; write ``results.json``, the recipe and a PNG into DIR.
-        ``--plugin`` imports a module that registers the user's own localization methods.
-    ``phyloc generate RECIPE -o OUT.h5 [--workers N | --scheduler ADDR] [--resume]``
-        Generate an HDF5 waveform dataset (sharded, resumable).
-    ``phyloc info OUT.h5 [--verify] [--json PATH]``
-        Summarize a dataset; with ``--verify`` check every checksum.
-    ``phyloc quickstart [--dir DIR]``
-        Generate the small urban quickstart dataset and compare DiPNet with two-step methods.
-    ``phyloc channel-stats SCENARIO [--square SIDE_M] [--links N] [--seed S] [--png PATH]
-    [--json PATH]``
-        Draw links of a channel scenario and compare realized statistics with its table.
+Commands:
+
+* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|all] [--quick] [--json PATH]``:
+  run benchmarks; print cost per unit of work and ratios to references.
+* ``phyloc evaluate RECIPE|OUT.h5 [--fast] [--out DIR] [--json PATH]
+  [--workers N | --scheduler ADDR] [--plugin MODULE]``: run an experiment recipe, or localize
+  on a dataset's waveforms; write ``results.json``, the recipe and a PNG into DIR.
+  ``--plugin`` imports a module (name or ``.py`` path) that registers the user's own
+  localization methods.
+* ``phyloc generate RECIPE -o OUT.h5 [--workers N | --scheduler ADDR] [--resume]``: generate an
+  HDF5 waveform dataset (sharded, resumable).
+* ``phyloc info OUT.h5 [--verify] [--json PATH]``: summarize a dataset; with ``--verify`` check
+  every checksum.
+* ``phyloc quickstart [--dir DIR]``: generate the small urban quickstart dataset and compare
+  DiPNet with two-step methods.
+* ``phyloc channel-stats SCENARIO [--square SIDE_M] [--links N] [--seed S] [--png PATH]
+  [--json PATH]``: draw links of a channel scenario and compare realized statistics with its
+  table.
 
 Errors a user can cause are printed as one line without a traceback (exit status 2).
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 from __future__ import annotations

@@ -7,15 +7,21 @@ frozen dataclasses (``[system]`` → :class:`~phyloc.phy.OFDMSystem`, ``[channel
 :class:`~phyloc.channels.ChannelSpec`); ``[network]`` and the experiment's own sections are
 validated by their consumers' ``from_dict`` through :meth:`Recipe.section`.
 
-Top-level keys
-    ``kind``  what the recipe runs: ``"ranging"`` (ranging RMSE versus bounds, DiPNet Fig. 4) or
-              ``"localization"`` (direct versus two-step localization, DiPNet Fig. 5) or
-              ``"dataset"`` (waveforms for ``phyloc generate``) or ``"tracking"`` (range-level
-              cooperative tracking, PF-BP paper) or ``"static"`` (static cooperative
-              localization with polygon-constrained NBP, POA paper);
-    ``name``  a short identifier (results folder name, figure prefixes);
-    ``seed``  the one seed of all randomness (per-task streams come from ``SeedSequence.spawn``);
-    ``description``  free text.
+Top-level keys:
+
+* ``kind``: what the recipe runs: ``"ranging"`` (ranging RMSE versus bounds, DiPNet Fig. 4),
+  ``"localization"`` (direct versus two-step localization, DiPNet Fig. 5), ``"dataset"``
+  (waveforms for ``phyloc generate``), ``"tracking"`` (range-level cooperative tracking,
+  PF-BP Figs. 4, 6, 7) or ``"static"`` (static cooperative localization with polygon-constrained
+  NBP, POA-NBP Figs. 9–12);
+* ``name``: a short identifier (results folder name, figure prefixes);
+* ``seed``: the one seed of all randomness (per-task streams come from
+  ``SeedSequence.spawn``);
+* ``description``: free text.
+
+References
+----------
+TOML v1.0.0, https://toml.io/en/v1.0.0 (read with the standard library's ``tomllib``).
 """
 
 from __future__ import annotations

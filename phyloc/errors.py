@@ -2,6 +2,11 @@
 
 Every error a user can cause derives from :class:`PhylocError`; the command line prints its
 message without a traceback and exits non-zero.
+
+References
+----------
+Python Software Foundation, "Built-in Exceptions" (:class:`ValidationError` is also a
+``ValueError``), https://docs.python.org/3/library/exceptions.html.
 """
 
 

@@ -15,6 +15,14 @@ Tasks are the unit of parallelism: each runs with its BLAS library limited to on
 hundred dimensions), where a multi-threaded BLAS gains little and, on a busy machine, loses a
 lot: a PF-BP Scenario II step took 15–22 s with OpenBLAS' default threads next to two other busy
 processes on 2 cores and 2 s with one thread.
+
+References
+----------
+M. Rocklin, "Dask: Parallel computation with blocked algorithms and task scheduling," Proc.
+14th Python in Science Conference (SciPy 2015), pp. 130–136, 2015.
+
+NumPy, "Parallel random number generation" (``SeedSequence.spawn``),
+https://numpy.org/doc/stable/reference/random/parallel.html.
 """
 
 from __future__ import annotations

@@ -7,6 +7,11 @@ Every command that reports numbers writes a JSON object (DESIGN.md, "Figures out
      "series": {"name": [numbers...], ...}}   # optional: arrays behind a plot
 
 Files are written atomically and an existing file is never replaced unless asked (``force``).
+
+References
+----------
+T. Bray (ed.), "The JavaScript Object Notation (JSON) data interchange format," RFC 8259,
+2017.
 """
 
 from __future__ import annotations

@@ -36,6 +36,7 @@ References
 ----------
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
 cooperative localization and navigation with embedded particle flow."
+
 P. Tichavský, C. H. Muravchik and A. Nehorai, "Posterior Cramér–Rao bounds for discrete-time
 nonlinear filtering," IEEE Trans. Signal Processing 46(5), pp. 1386–1396, 1998.
 """

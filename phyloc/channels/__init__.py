@@ -3,7 +3,7 @@
 Scenarios are data: the TOML files of the project's ``channels/`` folder (shipped as
 ``phyloc.scenarios``) or a user's own file, validated by :func:`load_scenario`. The sampler
 :func:`draw_links` turns a batch of link distances into :class:`~phyloc.phy.PathSet` channels
-(WINNER II D1.1.2 Sec. 4.2; DiPNet paper §II-B, §IV-A, §V-A); :func:`two_way_composite` and
+(WINNER II D1.1.2 Sec. 4.2; DiPNet §II-B, §IV-A, §V-A); :func:`two_way_composite` and
 :class:`ChannelSpec` add two-way ranging. :mod:`phyloc.channels.stats` checks realized
 statistics against the tables.
 
@@ -14,6 +14,15 @@ Examples
 >>> draw = draw_links("winner2_c2", np.array([10.0, 40.0, 90.0]), rng)
 >>> bool(np.allclose(draw.paths.total_power(), draw.received_power_w, rtol=1e-12))
 True
+
+References
+----------
+WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
+updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from phyloc.channels.sampler import (

@@ -5,8 +5,8 @@ names follow WINNER II D1.1.2 Part I, Table 4-4 (path loss) and Table 4-7 (LOS p
 transcribed in ``shared/reference/winner2/``. Frequencies enter as ``log10(f_c / f_ref)`` with
 ``f_ref = 5 GHz`` (D1.1.2 writes ``log10(f_c[GHz]/5.0)``).
 
-Device-to-device adaptation (applies to every law, see also ``channels/README.md``)
-----------------------------------------------------------------------------------
+**Device-to-device adaptation** (applies to every law, see also ``channels/README.md``):
+
 * **Antenna heights.** WINNER II formulas have a base-station height ``h_BS`` and a mobile
   height ``h_MS``. phyloc links are between devices with heights ``h_tx_m`` and ``h_rx_m``
   (default 1.5 m both); it uses ``h_BS = max(h_tx, h_rx)`` and ``h_MS = min(h_tx, h_rx)`` so that
@@ -27,8 +27,13 @@ Device-to-device adaptation (applies to every law, see also ``channels/README.md
   measured laws include ground reflection and wave-guiding).
 * **Above the maximum distance** the law is extrapolated (irrelevant for networks of < 1 km).
 * **Shadow-fading std** is the one of the law's segment (dual slope: ``seg1`` before and ``seg2``
-  beyond the breakpoint), as in Table 4-4; Table 4-5's σ_SF equals the ``seg1`` value in every
-  scenario.
+  beyond the breakpoint), as in WINNER II D1.1.2 Table 4-4; the σ_SF of WINNER II D1.1.2
+  Table 4-5 equals the ``seg1`` value in every scenario.
+
+References
+----------
+WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
+updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
 """
 
 from __future__ import annotations
@@ -294,7 +299,7 @@ class PathLoss:
 
 
 def _dual_slope(c, d, fc_hz, lf, h_bs, h_ms):
-    """Dual-slope LOS law (D1.1.2 Table 4-4): ``(PL [dB], beyond breakpoint [bool])``."""
+    """Dual-slope LOS law (WINNER II D1.1.2 Table 4-4): ``(PL [dB], beyond breakpoint [bool])``."""
     off = c["breakpoint_height_offset_m"]
     hb = h_bs - off
     hm = h_ms - off

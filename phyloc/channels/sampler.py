@@ -2,31 +2,32 @@
 
 For every link u←v at distance d the sampler returns paths with absolute delays
 ``τ_l = d/c0 + b + δ_l`` and complex gains ``α_l = √A_l·e^{jφ_l}`` (DESIGN.md signal model;
-DiPNet paper §II-B, eq. (6)), where ``b > 0`` only in NLOS and ``δ_0 = 0`` is the LOS path,
+DiPNet eq. (6), §II-B), where ``b > 0`` only in NLOS and ``δ_0 = 0`` is the LOS path,
 absent in NLOS. The path powers sum to the link-budget received power
 ``P_tx − PL(d) − SF`` (:meth:`phyloc.phy.OFDMSystem.received_power_w`).
 
 WINNER II model (D1.1.2 Part I, Sec. 4.2), per link
 ----------------------------------------------------
-1. Condition: LOS with probability P_LOS(d) (Table 4-7), unless forced.
-2. Path loss PL(d) and shadow-fading std σ_SF(d) (Table 4-4; see :mod:`phyloc.channels.pathloss`
-   for the device-to-device adaptation: heights, distances below the law's minimum).
+1. Condition: LOS with probability P_LOS(d) (WINNER II D1.1.2 Table 4-7), unless forced.
+2. Path loss PL(d) and shadow-fading std σ_SF(d) (WINNER II D1.1.2 Table 4-4; see
+   :mod:`phyloc.channels.pathloss` for the device-to-device adaptation: heights, distances
+   below the law's minimum).
 3. Large-scale parameters (step 4): one standard-normal vector ``x`` per link with the
    tabulated cross-correlation of ``[DS, SF, K]`` (LOS) or ``[DS, SF]`` (NLOS), imposed with a
    Cholesky factor; ``DS = 10^(μ_DS + σ_DS·x_DS)`` s, ``SF = σ_SF(d)·x_SF`` dB,
    ``K = μ_K + σ_K·x_K`` dB. The angle spreads (ASD, ASA) are not drawn (single-antenna links
    have no use for them), and LSPs are *not* spatially correlated across links.
-4. Cluster delays (step 5): ``τ'_n = −r_τ·DS·ln X_n``, ``X_n ~ U(0, 1]`` (eq. (4.1)), or
+4. Cluster delays (step 5): ``τ'_n = −r_τ·DS·ln X_n``, ``X_n ~ U(0, 1]`` (WINNER II eq. (4.1)), or
    ``τ'_n ~ U(0, τ_max)`` for uniform-delay scenarios (B1 NLOS); ``τ_n = sort(τ'_n − min τ')``
-   (eq. (4.2)).
-5. Cluster powers (step 6): ``P'_n = exp(−τ_n (r_τ − 1)/(r_τ DS))·10^(−Z_n/10)`` (eq. (4.5))
-   or ``exp(−τ_n/DS)·10^(−Z_n/10)`` for uniform delays (eq. (4.6)), ``Z_n ~ N(0, ζ²)``;
-   ``P_n = P'_n / Σ P'`` (eq. (4.7)).
+   (WINNER II eq. (4.2)).
+5. Cluster powers (step 6): ``P'_n = exp(−τ_n (r_τ − 1)/(r_τ DS))·10^(−Z_n/10)``
+   (WINNER II eq. (4.5)) or ``exp(−τ_n/DS)·10^(−Z_n/10)`` for uniform delays (WINNER II
+   eq. (4.6)), ``Z_n ~ N(0, ζ²)``; ``P_n = P'_n / Σ P'`` (WINNER II eq. (4.7)).
 6. LOS: ``K_R = 10^(K/10)``; the direct path (``δ_0 = 0``) carries ``K_R/(K_R + 1)`` and the
-   clusters are scaled by ``1/(K_R + 1)`` (eq. (4.8)); cluster delays are divided by
-   ``D(K) = 0.7705 − 0.0433K + 0.0002K² + 0.000017K³`` (eqs. (4.3)–(4.4)) with the link's own
-   K (K is limited to [−30, 40] dB inside D only, where D stays positive); powers use the
-   unscaled delays.
+   clusters are scaled by ``1/(K_R + 1)`` (WINNER II eq. (4.8)); cluster delays are divided by
+   ``D(K) = 0.7705 − 0.0433K + 0.0002K² + 0.000017K³`` (WINNER II eqs. (4.3)–(4.4)) with the
+   link's own K (K is limited to [−30, 40] dB inside D only, where D stays positive); powers
+   use the unscaled delays.
 7. Sub-clusters (step 11): the two strongest clusters are each split into three paths at
    +0/5/10 ns carrying 10/20, 6/20, 4/20 of the cluster power.
 8. Every path gets an independent uniform phase. Each (sub-)cluster is one path of its
@@ -43,6 +44,15 @@ AWGN: one direct path.
 
 Paths of a link are sorted by delay (the LOS path first at a tie). The random streams are
 consumed in a fixed order, so a draw depends only on the seed, the scenario and the batch.
+
+References
+----------
+WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
+updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -292,7 +302,7 @@ def _heights(name: str, h, n: int) -> np.ndarray:
 
 
 def _conditions(scn: Scenario, condition, d: np.ndarray, rng) -> np.ndarray:
-    """LOS flag per link: forced, given, or drawn from P_LOS(d) (D1.1.2 Table 4-7)."""
+    """LOS flag per link: forced, given, or drawn from P_LOS(d) (WINNER II D1.1.2 Table 4-7)."""
     n = d.size
     if condition is None:
         if scn.forced is not None:
@@ -331,7 +341,7 @@ def los_delay_scaling(k_db, coeffs) -> np.ndarray:
     Returns
     -------
     [n], float64
-        D; cluster delays of a LOS link are ``τ_n / D`` (eq. (4.4)).
+        D; cluster delays of a LOS link are ``τ_n / D`` (WINNER II eq. (4.4)).
 
     Examples
     --------
@@ -344,7 +354,7 @@ def los_delay_scaling(k_db, coeffs) -> np.ndarray:
 
 
 def _draw_winner2(p: Winner2Condition, sf_std: np.ndarray, rng) -> dict:
-    """WINNER II steps 4–6 and 11 for ``n`` links of one condition (D1.1.2 eqs. (4.1)–(4.9))."""
+    """WINNER II steps 4–6 and 11 for ``n`` links of one condition (WINNER II eqs. (4.1)–(4.9))."""
     n = sf_std.size
     is_los = p.condition == "los"
     x = rng.standard_normal((n, p.cholesky.shape[0])) @ p.cholesky.T
@@ -354,21 +364,21 @@ def _draw_winner2(p: Winner2Condition, sf_std: np.ndarray, rng) -> dict:
     nc = p.num_clusters
     if p.delay_distribution == "exponential":
         u = 1.0 - rng.random((n, nc))  # (0, 1]
-        tau = -p.r_tau * ds[:, None] * np.log(u)  # eq. (4.1)
+        tau = -p.r_tau * ds[:, None] * np.log(u)  # WINNER II eq. (4.1)
     else:
         tau = rng.uniform(0.0, p.uniform_delay_max_s, (n, nc))
     tau.sort(axis=1)
-    tau -= tau[:, :1]  # eq. (4.2)
+    tau -= tau[:, :1]  # WINNER II eq. (4.2)
     z = p.cluster_shadowing_std_db * rng.standard_normal((n, nc))
     if p.delay_distribution == "exponential":
         pw = np.exp(-tau * ((p.r_tau - 1.0) / (p.r_tau * ds))[:, None] - z * (math.log(10) / 10))
     else:
-        pw = np.exp(-tau / ds[:, None] - z * (math.log(10) / 10))  # eq. (4.6)
-    pw /= pw.sum(axis=1, keepdims=True)  # eq. (4.7)
+        pw = np.exp(-tau / ds[:, None] - z * (math.log(10) / 10))  # WINNER II eq. (4.6)
+    pw /= pw.sum(axis=1, keepdims=True)  # WINNER II eq. (4.7)
     if is_los:
         kr = 10.0 ** (k_db / 10.0)
-        pw *= (1.0 / (kr + 1.0))[:, None]  # eq. (4.8)
-        tau /= los_delay_scaling(k_db, p.los_delay_scaling)[:, None]  # eq. (4.4)
+        pw *= (1.0 / (kr + 1.0))[:, None]  # WINNER II eq. (4.8)
+        tau /= los_delay_scaling(k_db, p.los_delay_scaling)[:, None]  # WINNER II eq. (4.4)
         # (the powers above used the unscaled delays, as D1.1.2 prescribes)
     ns = p.num_split
     if ns:

@@ -9,7 +9,7 @@ the LOS-probability law and one parameter table per propagation condition, ``[lo
     spread, normal K-factor (dB), exponential (or uniform) cluster delays, cluster powers with
     per-cluster shadowing, sub-cluster split of the two strongest clusters.
 ``exponential``
-    The LOS/NLOS model of the DiPNet paper's analysis (§IV-A, Appendix III): excess delays
+    The LOS/NLOS model of DiPNet's analysis (§IV-A, Appendix III): excess delays
     ``δ_l ~ Exp`` with mean ``excess_delay_mean_s``, a Poisson number of paths, a fixed
     LOS-to-scatter power ratio, NLOS bias ``b ~ Exp``.
 ``awgn``
@@ -20,6 +20,15 @@ Names. Shipped files are found with ``importlib.resources.files("phyloc.scenario
 (condition forced) and, if both exist, ``<base>`` (condition drawn per link from P_LOS(d)). A
 file ``<base>.toml`` with both sections provides ``<base>``, ``<base>_los`` and ``<base>_nlos``.
 Anything else that names an existing file is loaded as a user scenario file.
+
+References
+----------
+WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
+updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -42,7 +51,7 @@ SCHEMA = "phyloc.channel.v1"
 MODELS = ("winner2", "exponential", "awgn")
 CONDITIONS = ("los", "nlos")
 
-#: Default mean NLOS bias [s]: DiPNet paper §V-A (GREAT ray tracing, urban).
+#: Default mean NLOS bias [s]: DiPNet §V-A (GREAT ray tracing, urban).
 DEFAULT_NLOS_BIAS_MEAN_S = 0.3e-6
 
 _TOP = {
@@ -111,19 +120,19 @@ def _exponential_spec(condition: str) -> dict:
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class Winner2Condition:
-    """WINNER II parameters of one condition (D1.1.2 Tables 4-4, 4-5; Sec. 4.2).
+    """WINNER II parameters of one condition (WINNER II D1.1.2 Tables 4-4, 4-5; Sec. 4.2).
 
     Attributes
     ----------
     condition : {"los", "nlos"}
     pathloss : PathLoss
-        Path-loss law and shadow-fading std (Table 4-4).
+        Path-loss law and shadow-fading std (WINNER II D1.1.2 Table 4-4).
     ds_log10_mu, ds_log10_sigma : float
-        Mean / std of ``log10(DS / 1 s)`` (Table 4-5).
+        Mean / std of ``log10(DS / 1 s)`` (WINNER II D1.1.2 Table 4-5).
     k_db_mu, k_db_sigma : float
         Ricean K-factor mean / std [dB] (LOS; NaN in NLOS).
     correlation : [n_lsp, n_lsp] float64
-        Correlation of the standard-normal LSP draws ``[DS, SF(, K)]`` (Table 4-5).
+        Correlation of the standard-normal LSP draws ``[DS, SF(, K)]`` (WINNER II D1.1.2 Table 4-5).
     cholesky : [n_lsp, n_lsp] float64
         Lower Cholesky factor of ``correlation``.
     num_clusters : int
@@ -136,7 +145,7 @@ class Winner2Condition:
     cluster_shadowing_std_db : float
         Per-cluster shadowing ζ [dB].
     los_delay_scaling : tuple of 4 float
-        ``c0..c3`` of ``D(K)`` (eq. (4.3)), LOS only.
+        ``c0..c3`` of ``D(K)`` (WINNER II eq. (4.3)), LOS only.
     num_split : int
         Number of strongest clusters split into sub-clusters (step 11).
     subcluster_offsets_s, subcluster_fractions : tuple of float
@@ -217,7 +226,7 @@ class Scenario:
         Scenario name (``winner2_c2``, ``winner2_c2_los``, ``awgn``, a user file's name...).
     model : {"winner2", "exponential", "awgn"}
     los_probability : LosProbability
-        P_LOS(d) (D1.1.2 Table 4-7).
+        P_LOS(d) (WINNER II D1.1.2 Table 4-7).
     los, nlos : condition parameters or None
         Parameters per condition; a missing one cannot be drawn.
     forced : {"los", "nlos"} or None

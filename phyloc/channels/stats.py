@@ -6,7 +6,8 @@ public interface; a figure is omitted when its condition has no links in the dra
 
 =============================  ===============================================================
 ``los_fraction``               fraction of LOS links
-``los_fraction_table``         mean of P_LOS(d) over the same distances (Table 4-7)
+``los_fraction_table``         mean of P_LOS(d) over the same distances
+                               (WINNER II D1.1.2 Table 4-7)
 ``ds_log10_mean_los``          mean of log10(DS / 1 s) over LOS links (the drawn LSP)
 ``ds_log10_std_los``           its std; ``*_nlos`` the same over NLOS links
 ``rms_ds_log10_mean_los``      mean of log10 of the rms delay spread of the generated paths
@@ -22,9 +23,15 @@ public interface; a figure is omitted when its condition has no links in the dra
 =============================  ===============================================================
 
 Each figure with a table value has a twin ``<name>_table``. Table values: DS and K from
-Table 4-5 (μ, σ); SF: ``sqrt(mean σ_SF(d)²)`` over the drawn links (the law's segment std,
-Table 4-4); path count: the expected count given ``los_fraction_table``; NLOS bias: the file's
-mean. Series: ``distance_bin_m``, ``los_fraction_by_distance``, ``los_probability_by_distance``.
+WINNER II D1.1.2 Table 4-5 (μ, σ); SF: ``sqrt(mean σ_SF(d)²)`` over the drawn links (the law's
+segment std, WINNER II D1.1.2 Table 4-4); path count: the expected count given
+``los_fraction_table``; NLOS bias: the file's mean. Series: ``distance_bin_m``,
+``los_fraction_by_distance``, ``los_probability_by_distance``.
+
+References
+----------
+WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
+updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
 """
 
 from __future__ import annotations

@@ -8,11 +8,47 @@ with its version :data:`SCHEMA_VERSION`, in ``datasets/README.md``.
 
 Examples
 --------
->>> import phyloc.datasets as pds                                    # doctest: +SKIP
->>> pds.generate("datasets/quickstart_c2.toml", "c2.h5", workers=2)   # doctest: +SKIP
->>> with pds.open("c2.h5") as ds:                                     # doctest: +SKIP
-...     snap = ds.snapshot(0, 0)
-...     snap.received.shape, snap.tx_index.shape
+A tiny dataset (2 agents and 1 anchor in AWGN, 33 subcarriers, one realization), written to a
+temporary folder and read back:
+
+>>> import tempfile, pathlib
+>>> import phyloc.datasets as pds
+>>> from phyloc.phy.correlation import correlation_tables
+>>> recipe = '''
+... kind = "dataset"
+... seed = 1
+... [system]
+... n_subcarriers = 33
+... [network]
+... n_agents = 2
+... anchors = 1
+... [channel]
+... scenario = "awgn"
+... [dataset]
+... realizations = 1
+... '''
+>>> with tempfile.TemporaryDirectory() as tmp:
+...     out = pathlib.Path(tmp) / "tiny.h5"
+...     summary = pds.generate(recipe, out, progress=False)
+...     with pds.open(out) as ds:
+...         snap = ds.snapshot(0, 0)
+...         table = correlation_tables(snap.received, snap.symbols, ds.system,
+...                                    tx_index=snap.tx_index)
+...         shapes = (ds["received"].shape, snap.received.shape, table.n_links)
+>>> summary["links"], shapes  # 6 directed links: 2 agent-agent, 4 agent-anchor
+(6, ((1, 1, 6, 33), (6, 33), 6))
+
+References
+----------
+The HDF Group, *HDF5 User's Guide*, including its virtual datasets (VDS),
+https://docs.hdfgroup.org/; the h5py documentation, https://docs.h5py.org/.
+
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
+updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
 """
 
 from phyloc.datasets.reader import Dataset, Snapshot, info, open, open_dataset, verify

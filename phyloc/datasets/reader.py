@@ -1,13 +1,20 @@
 """Reading waveform datasets: lazy arrays, snapshots for localizers, ``info`` and ``verify``.
 
->>> with open_dataset("c2.h5") as ds:                       # doctest: +SKIP
-...     snap = ds.snapshot(0, 0)                             # realization 0, snapshot 0
-...     R, S, tx = snap.received, snap.symbols, snap.tx_index  # what a localizer needs
-...     table = correlation_tables(R, S, ds.system, tx_index=tx)
+Typical use (the package docstring of :mod:`phyloc.datasets` has a runnable example)::
+
+    with open_dataset("c2.h5") as ds:
+        snap = ds.snapshot(0, 0)                               # realization 0, snapshot 0
+        R, S, tx = snap.received, snap.symbols, snap.tx_index  # what a localizer needs
+        table = correlation_tables(R, S, ds.system, tx_index=tx)
 
 Every array of the schema (``datasets/README.md``) is available lazily as an ``h5py.Dataset``
 (``ds["received"]``, ``ds.arrays``); :meth:`Dataset.snapshot` and :meth:`Dataset.realization`
 read what one snapshot or one realization needs, and the iterators walk them in order.
+
+References
+----------
+The HDF Group, *HDF5 User's Guide*, including its virtual datasets (VDS),
+https://docs.hdfgroup.org/; the h5py documentation, https://docs.h5py.org/.
 """
 
 from __future__ import annotations

@@ -9,6 +9,11 @@ the exceptions.
 
 Checksums are SHA-256 over the C-order bytes of an array as stored (little-endian; complex
 values as interleaved real/imaginary pairs), so any tool can recompute them.
+
+References
+----------
+The HDF Group, *HDF5 User's Guide*, including its virtual datasets (VDS),
+https://docs.hdfgroup.org/; the h5py documentation, https://docs.h5py.org/.
 """
 
 from __future__ import annotations

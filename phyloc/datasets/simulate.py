@@ -5,6 +5,15 @@ runs on when given a recipe instead of a dataset, so the two give identical sign
 same random stream. Random numbers are consumed in a fixed order: network (deployment and
 motion), then per snapshot the channel draw of every link, then the pilot symbols (once), then
 per snapshot the noise of every link.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
+updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
 """
 
 from __future__ import annotations

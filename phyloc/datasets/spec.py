@@ -8,6 +8,11 @@ Example (see ``datasets/quickstart_c2.toml``)::
     chunk_links = 0         # links per HDF5 chunk of `received`; 0: all links of a snapshot
     compression = "none"    # "none", "gzip" or "lzf" (received samples, pilots, path sets)
     compression_level = 4   # gzip level 0-9 (ignored otherwise)
+
+References
+----------
+The HDF Group, *HDF5 User's Guide*, including its virtual datasets (VDS),
+https://docs.hdfgroup.org/; the h5py documentation, https://docs.h5py.org/.
 """
 
 from __future__ import annotations

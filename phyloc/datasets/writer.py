@@ -26,6 +26,17 @@ never overwritten.
 Reproducibility: shards are bit-identical for any worker count on one platform (the Numba
 kernels run per link, FFTs are batched pocketfft transforms). Workers on different CPUs may
 compile the kernels differently, which can change the last bits of a few samples.
+
+References
+----------
+The HDF Group, *HDF5 User's Guide*, including its virtual datasets (VDS),
+https://docs.hdfgroup.org/; the h5py documentation, https://docs.h5py.org/.
+
+M. Rocklin, "Dask: Parallel computation with blocked algorithms and task scheduling," Proc.
+14th Python in Science Conference (SciPy 2015), pp. 130–136, 2015.
+
+NumPy, "Parallel random number generation" (``SeedSequence.spawn``),
+https://numpy.org/doc/stable/reference/random/parallel.html.
 """
 
 from __future__ import annotations

@@ -1,4 +1,17 @@
-"""phyloc.evaluation (see DESIGN.md): metrics, experiments, figures."""
+"""phyloc.evaluation (see DESIGN.md): metrics, experiments, figures.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
+"""
 
 from phyloc.evaluation.metrics import (
     error_cdf,

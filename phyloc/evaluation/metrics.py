@@ -13,6 +13,18 @@ agent). Conventions shared by every function here:
   the functions that can say how many were used do so (``return_pairs``, ``return_counts``).
   ``±inf`` is always an error. A metric left with nothing to average raises, it never returns
   NaN.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+W. Kabsch, "A solution for the best rotation to relate two sets of vectors," Acta Cryst. A32,
+1976.
+
+S. Umeyama, "Least-squares estimation of transformation parameters between two point
+patterns," IEEE Trans. PAMI 13(4), 1991.
 """
 
 from __future__ import annotations
@@ -81,8 +93,8 @@ def framework_distance_errors(
 ):
     """Absolute framework distance errors ``ε_uv = |d̂_uv − d_uv|`` (DiPNet eq. (4) summands).
 
-    Following the double sum of eq. (4) exactly, ``u`` runs over the agents and ``v`` over every
-    other node: an agent–agent pair appears twice, as ``(u, v)`` and ``(v, u)``, an
+    Following the double sum of DiPNet eq. (4) exactly, ``u`` runs over the agents and ``v``
+    over every other node: an agent–agent pair appears twice, as ``(u, v)`` and ``(v, u)``, an
     agent–anchor pair once, an anchor–anchor pair never. All pairs count, linked or not.
 
     Parameters
@@ -257,8 +269,9 @@ def shape_difference(
         \\varepsilon_{q,p} = \\sqrt{\\frac{1}{|\\mathcal{M}|}
         \\sum_{u \\in \\mathcal{M}} \\| \\mathcal{T}_{opt}(q_u) - p_u \\|^2}
 
-    with ``T_opt`` from :func:`rigid_align` (anchors kept at their true positions, eq. (3)). The
-    sum runs over the agents (the anchors' residual is zero when their estimates are exact).
+    with ``T_opt`` from :func:`rigid_align` (anchors kept at their true positions, DiPNet
+    eq. (3)). The sum runs over the agents (the anchors' residual is zero when their estimates
+    are exact).
     With ``missing="exclude"`` the mean runs over the agents with an estimate.
 
     Parameters

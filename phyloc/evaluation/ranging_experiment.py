@@ -5,25 +5,41 @@ every network size in ``experiment.agents`` and every realization: a fully meshe
 (``[network]``), a channel draw per directed link (``[channel]``), the received signals and
 their correlation tables (``[system]``, ``ranging.beta``), and every estimator of
 ``ranging.methods`` on all links. Errors are pooled over sizes and realizations and binned by
-true distance. The bounds are the one-path CRB (eq. (24)) and ZZB at each link's link-budget
+true distance. The bounds are the one-path CRB (DiPNet eq. (24)) and ZZB at each link's link-budget
 SNR (received power over noise, as if the power arrived in one path), pooled per bin as
 ``sqrt(mean(bound))``. An AWGN sweep of post-correlation SNR checks the correlation estimator
 against the CRB and locates the threshold below which wrong-peak outliers appear (an outlier
 is an error beyond the first null of the autocorrelation, ``c0/B``).
 
-Figures (``results.json``; ``<m>`` a method, ``<s>`` a scenario token)
-    ``<m>.<s>.rmse_m``              ranging RMSE over all valid links
-    ``<m>.<s>.rmse_los_m`` / ``rmse_nlos_m``   the same over LOS / NLOS links
-    ``<m>.<s>.valid_fraction``      fraction of links with a range
-    ``<m>.<s>.rmse_over_zzb``       ``rmse_m`` over the pooled √ZZB
-    ``crb.<s>.rmse_m`` / ``zzb.<s>.rmse_m``    pooled √CRB / √ZZB over all links
-    ``<s>.los_fraction``, ``<s>.n_links``
-    ``corr.awgn.crb_ratio_<x>db``   RMSE/√CRB of the correlation peak at post-corr. SNR x dB
-    ``corr.awgn.threshold_snr_db``  lowest swept SNR from which on outliers stay <= 1 %
-    ``zzb.awgn.threshold_snr_db``   the same SNR as predicted by the ZZB (ZZB <= 1.15 CRB)
-Series: ``distance_bin_centers_m``, ``<m>.<s>.rmse_by_distance_m``, ``crb.<s>.rmse_by_distance_m``,
-``zzb.<s>.rmse_by_distance_m``, ``<s>.links_by_distance``, ``awgn.pc_snr_db``,
-``corr.awgn.rmse_over_sqrt_crb``, ``corr.awgn.outlier_fraction``, ``zzb.awgn.over_crb``.
+Figures (``results.json``; ``<m>`` a method, ``<s>`` a scenario token):
+
+* ``<m>.<s>.rmse_m``: ranging RMSE over all valid links;
+* ``<m>.<s>.rmse_los_m`` / ``rmse_nlos_m``: the same over LOS / NLOS links;
+* ``<m>.<s>.valid_fraction``: fraction of links with a range;
+* ``<m>.<s>.rmse_over_zzb``: ``rmse_m`` over the pooled √ZZB;
+* ``crb.<s>.rmse_m`` / ``zzb.<s>.rmse_m``: pooled √CRB / √ZZB over all links;
+* ``<s>.los_fraction``, ``<s>.n_links``;
+* ``corr.awgn.crb_ratio_<x>db``: RMSE/√CRB of the correlation peak at post-correlation SNR
+  x dB;
+* ``corr.awgn.threshold_snr_db``: lowest swept SNR from which on outliers stay <= 1 %;
+* ``zzb.awgn.threshold_snr_db``: the same SNR as predicted by the ZZB (ZZB <= 1.15 CRB).
+
+Series: ``distance_bin_centers_m``, ``<m>.<s>.rmse_by_distance_m``,
+``crb.<s>.rmse_by_distance_m``, ``zzb.<s>.rmse_by_distance_m``, ``<s>.links_by_distance``,
+``awgn.pc_snr_db``, ``corr.awgn.rmse_over_sqrt_crb``, ``corr.awgn.outlier_fraction``,
+``zzb.awgn.over_crb``.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+S. M. Kay, *Fundamentals of Statistical Signal Processing, Volume I: Estimation Theory*,
+Prentice Hall, 1993 (the Cramér–Rao bound, ch. 3).
+
+K. L. Bell, Y. Steinberg, Y. Ephraim and H. L. Van Trees, "Extended Ziv–Zakai lower bound for
+vector parameter estimation," IEEE Trans. Information Theory 43(2), pp. 624–637, 1997.
 """
 
 from __future__ import annotations

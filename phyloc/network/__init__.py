@@ -3,7 +3,19 @@
 A :class:`NetworkSpec` (recipe section ``[network]``, with ``[network.motion]`` a
 :class:`MotionSpec`) describes a network; :func:`make_network` draws a :class:`Network` from it
 with a ``numpy.random.Generator``. :func:`transition_matrices` exposes the CV/CA state models of
-the PF-BP paper eqs. (1)–(3) for the tracking filters.
+PF-BP eqs. (1)–(3) for the tracking filters.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+
+Y. Bar-Shalom, X. R. Li and T. Kirubarajan, *Estimation with Applications to Tracking and
+Navigation*, Wiley, 2001 (direct discrete-time kinematic models, §6.3).
 """
 
 from phyloc.network.deployment import (

@@ -15,6 +15,15 @@ Conventions (DiPNet §II-A; PF-BP §II):
   :attr:`Network.is_anchor`). Links are sorted lexicographically by ``(u, v)``.
 - **Connectivity**: ``u`` and ``v`` are connected at a snapshot when their distance is
   ``<= comm_range_m`` (or always, for a fully meshed network); links change with motion.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """Motion models: static, random walk, constant velocity (CV) and constant acceleration (CA).
 
-The CV and CA models are the discrete white-noise-acceleration models of the PF-BP paper
-eqs. (1)–(3) and (48): the state of an agent stacks position, velocity (and acceleration),
-each a ``dim``-vector,
+The CV and CA models are the discrete white-noise-acceleration models of PF-BP eqs. (1)–(3)
+and (48): the state of an agent stacks position, velocity (and acceleration), each a
+``dim``-vector,
 
 .. math::
 
@@ -24,6 +24,14 @@ and ``Q = G (σ_a² I) Gᵀ`` (PF-BP eq. (48)). The CV model is the same constru
 acceleration row and column removed: ``F = [[1, ΔT], [0, 1]] ⊗ I``, ``G = [ΔT²/2, ΔT]ᵀ ⊗ I``
 (the acceleration is white noise held constant over one sampling period). In 3-D the CA state
 is 9-dimensional, the CV state 6-dimensional.
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+
+Y. Bar-Shalom, X. R. Li and T. Kirubarajan, *Estimation with Applications to Tracking and
+Navigation*, Wiley, 2001 (direct discrete-time kinematic models, §6.3).
 """
 
 from __future__ import annotations

@@ -96,7 +96,7 @@ def crb_range(snr, symbols, system: OFDMSystem) -> np.ndarray:
 
     Notes
     -----
-    Eq. (24) treats the amplitude as decoupled from the delay, which is exact when
+    DiPNet eq. (24) treats the amplitude as decoupled from the delay, which is exact when
     ``Σ|S_n|² n = 0`` (constant-modulus pilots on symmetric subcarriers).
     """
     s = _snr(snr)

@@ -13,6 +13,15 @@ Wisdom
     FFTW plans made with ``FFTW_MEASURE`` are remembered in ``$PHYLOC_CACHE_DIR/fftw_wisdom.json``
     (default ``~/.cache/phyloc``), so a second process plans in milliseconds. Writes are atomic;
     an unreadable wisdom file is ignored (and replaced on the next save).
+
+References
+----------
+M. Frigo and S. G. Johnson, "The design and implementation of FFTW3," Proc. IEEE 93(2),
+pp. 216–231, 2005.
+
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations

@@ -2,6 +2,12 @@
 
 A batch of ``n_links`` links, each with its own number of paths, is stored flat: the paths of
 link ``i`` are ``delays[offsets[i]:offsets[i+1]]`` and ``gains[offsets[i]:offsets[i+1]]``.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ from phyloc.errors import ValidationError
 
 @dataclass(frozen=True, eq=False)
 class PathSet:
-    """Multipath components of a batch of links (DiPNet paper eq. (6)).
+    """Multipath components of a batch of links (DiPNet eq. (6)).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""Received OFDM signals of a batch of multipath links (DiPNet paper eq. (6)).
+"""Received OFDM signals of a batch of multipath links (DiPNet eq. (6)).
 
 In the frequency domain (DESIGN.md, signal model)
 
@@ -7,6 +7,12 @@ In the frequency domain (DESIGN.md, signal model)
 which is the exact DFT of ``r(iT) = Σ_l α_l s(iT − τ_l) + ε(iT)`` for any real (fractional)
 delays: s(t) is periodic, so a delay is a phase ramp. :func:`~phyloc.phy.waveform.to_time_domain`
 gives the time samples (for ``os = 1`` the noise is then white with variance σ² per sample).
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -58,7 +64,7 @@ def synthesize(
     tx_index=None,
     noise_var=None,
 ) -> np.ndarray:
-    """Frequency-domain received symbols of every link (eq. (6), DESIGN.md signal model).
+    """Frequency-domain received symbols of every link (DiPNet eq. (6), DESIGN.md signal model).
 
     Parameters
     ----------

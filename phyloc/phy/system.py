@@ -1,9 +1,15 @@
 """The OFDM system and the link budget.
 
-Signal model (DESIGN.md; DiPNet paper §II-B, eq. (5)): subcarriers
+Signal model (DESIGN.md; DiPNet §II-B, DiPNet eq. (5)): subcarriers
 ``n = -(N-1)/2 … (N-1)/2`` with N odd and spacing ``f_sc``, ``ω = 2π f_sc``, bandwidth
 ``B = N f_sc``, time samples at ``T = 1/(os·N·f_sc)``. The thermal noise power in the band is
 ``σ² = k·T_K·B·NF``.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -45,7 +51,7 @@ def watt_to_dbm(p_w):
 
 @dataclass(frozen=True)
 class OFDMSystem:
-    """An OFDM ranging system (DiPNet paper §V-A defaults).
+    """An OFDM ranging system (DiPNet §V-A defaults).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
 """Pilot symbols and the OFDM waveform in its frequency- and time-domain forms.
 
-The transmitted symbol (DiPNet paper eq. (5))
+The transmitted symbol (DiPNet eq. (5))
 
 .. math:: s(t) = N^{-1/2} \\sum_{n=-(N-1)/2}^{(N-1)/2} S_n e^{j ω n t}
 
@@ -15,6 +15,12 @@ frequency domain, ``R_n`` (``[n_links, N]``), and converts with :func:`to_time_d
 
 For ``os = 1`` this pair is the unitary DFT, so white noise of variance σ² per sample is white
 noise of variance σ² per subcarrier.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations
@@ -75,7 +81,7 @@ def check_symbols(symbols, system: OFDMSystem, name: str = "symbols") -> np.ndar
 
 
 def time_domain_symbol(symbols, system: OFDMSystem, delay_s=0.0) -> np.ndarray:
-    """Samples of the transmitted symbol ``s(iT − τ)`` (eq. (5)), exact for any real delay.
+    """Samples of the transmitted symbol ``s(iT − τ)`` (DiPNet eq. (5)), exact for any real delay.
 
     Parameters
     ----------

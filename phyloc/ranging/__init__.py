@@ -15,6 +15,20 @@ CRB) and a validity flag.
                 links by ground truth; ``oracle=True`` on its results.
 
 :func:`estimate` dispatches by name; :func:`ranging_variance` gives the model's variance.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+D. Dardari, A. Conti, U. Ferner, A. Giorgetti and M. Z. Win, "Ranging with ultrawide
+bandwidth signals in multipath environments," Proc. IEEE 97(2), pp. 404–426, 2009 (DiPNet
+ref. [29]).
+
+B. H. Fleury, M. Tschudin, R. Heddergott, D. Dahlhaus and K. I. Pedersen, "Channel parameter
+estimation in mobile radio environments using the SAGE algorithm," IEEE J. Selected Areas in
+Communications 17(3), pp. 434–450, 1999.
 """
 
 from phyloc.ranging.estimators import (

@@ -8,7 +8,7 @@ whose correlation function (DiPNet eq. (23))
 
 is tabulated on a grid of spacing ``h = c0/(βB)``, and returns :class:`RangeEstimates`: a
 range, a bias-corrected per-sample SNR estimate and the variance of the Gaussian ranging model
-(the one-path ZZB at the estimated SNR, DiPNet §V-A, or the CRB of eq. (24)).
+(the one-path ZZB at the estimated SNR, DiPNet §V-A, or the CRB of DiPNet eq. (24)).
 
 Detection (all estimators)
     For noise only, ``f(d) ~ CN(0, σ²‖S‖²)`` at every d, so ``|f|²/(σ²‖S‖²)`` is Exp(1)
@@ -17,6 +17,19 @@ Detection (all estimators)
     (``c0/B`` = 7.97 m), so noise alone passes with probability ≈ 40·e^{−16} ≈ 5e-6 per link,
     while a path is detected once its post-correlation SNR ``|α|²‖S‖²/σ²`` exceeds ≈ 12 dB.
     ``noise_factor=None`` (or 0) disables the test: every link is then valid.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+D. Dardari, A. Conti, U. Ferner, A. Giorgetti and M. Z. Win, "Ranging with ultrawide
+bandwidth signals in multipath environments," Proc. IEEE 97(2), pp. 404–426, 2009 (DiPNet
+ref. [29]).
+
+S. M. Kay, *Fundamentals of Statistical Signal Processing, Volume I: Estimation Theory*,
+Prentice Hall, 1993 (the Cramér–Rao bound, ch. 3).
 """
 
 from __future__ import annotations
@@ -72,9 +85,9 @@ def correlation_peak(
 
     ``d̂ = argmax_{lo<=d<=hi} |f(d)|²``: the grid maximum, then Newton iterations on the exact
     ``|f(d)|²`` (spectral derivatives): the ML distance of the one-path model (DiPNet eqs.
-    (21)–(23)); in AWGN its RMSE attains √CRB (eq. (24)) above the threshold SNR. In multipath
-    it returns the strongest path (or a blend of unresolved ones), so a later path stronger than
-    the LOS gives a positive bias (see :func:`first_peak`).
+    (21)–(23)); in AWGN its RMSE attains √CRB (DiPNet eq. (24)) above the threshold SNR. In
+    multipath it returns the strongest path (or a blend of unresolved ones), so a later path
+    stronger than the LOS gives a positive bias (see :func:`first_peak`).
 
     Parameters
     ----------

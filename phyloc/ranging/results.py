@@ -1,5 +1,12 @@
 """The result of a range estimator (:class:`RangeEstimates`) and the helpers the estimators share:
-search windows, detection thresholds, SNR estimates and the ranging variance."""
+search windows, detection thresholds, SNR estimates and the ranging variance.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+"""
 
 from __future__ import annotations
 

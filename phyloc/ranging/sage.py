@@ -44,6 +44,19 @@ LOS choice
     ``|α_l|²`` is within ``los_threshold_db`` of the strongest kept path in the window. A link
     without any kept path in the window is invalid; its range is then the strongest path in the
     window before pruning, clipped to the window (a finite placeholder).
+
+References
+----------
+B. H. Fleury, M. Tschudin, R. Heddergott, D. Dahlhaus and K. I. Pedersen, "Channel parameter
+estimation in mobile radio environments using the SAGE algorithm," IEEE J. Selected Areas in
+Communications 17(3), pp. 434–450, 1999.
+
+J. A. Fessler and A. O. Hero, "Space-alternating generalized expectation-maximization
+algorithm," IEEE Trans. Signal Processing 42(10), pp. 2664–2677, 1994 (DiPNet ref. [33]).
+
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Two-step localization models each range as Gaussian around the true distance with the variance
 of the one-path Ziv–Zakai bound at the link's *estimated* per-sample SNR (DiPNet §V-A,
-following its refs. [29], [61]); the Cramér–Rao bound of eq. (24) is the alternative.
+following its refs. [29], [61]); the Cramér–Rao bound of DiPNet eq. (24) is the alternative.
 
 The ZZB is a numerical integral over lags (:func:`phyloc.phy.bounds.zzb_range`; its cost is
 dominated by ``1 − Re ρ(h)`` on a few thousand lags × N subcarriers, ~0.1 s per call). It is
@@ -26,6 +26,22 @@ The CRB option returns :func:`~phyloc.phy.bounds.crb_range` capped at the prior 
 ``D²/12`` (a range known to lie in an interval of width D never has a larger variance); the cap
 only acts at post-correlation SNRs below about −25 dB for D = 300 m, and turns SNR 0 into
 ``D²/12`` instead of inf.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+
+K. L. Bell, Y. Steinberg, Y. Ephraim and H. L. Van Trees, "Extended Ziv–Zakai lower bound for
+vector parameter estimation," IEEE Trans. Information Theory 43(2), pp. 624–637, 1997.
+
+D. Dardari, A. Conti, U. Ferner, A. Giorgetti and M. Z. Win, "Ranging with ultrawide
+bandwidth signals in multipath environments," Proc. IEEE 97(2), pp. 404–426, 2009 (DiPNet
+ref. [29]).
+
+S. M. Kay, *Fundamentals of Statistical Signal Processing, Volume I: Estimation Theory*,
+Prentice Hall, 1993 (the Cramér–Rao bound, ch. 3).
 """
 
 from __future__ import annotations
@@ -154,7 +170,7 @@ def ranging_variance(
         Required with symbols; ignored (the table's) with a table.
     kind : {"zzb", "crb"}
         The one-path Ziv–Zakai bound (default; interpolated from a cached table, see the module
-        docstring for its accuracy) or the Cramér–Rao bound of eq. (24), capped at ``D²/12``.
+        docstring for its accuracy) or the Cramér–Rao bound of DiPNet eq. (24), capped at ``D²/12``.
     prior_range_m : float
         D [m], the width of the uniform a-priori distance interval of the ZZB (and the cap of
         the CRB). Default 300 m (the estimators' default window).
