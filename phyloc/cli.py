@@ -469,30 +469,17 @@ def cmd_quickstart(args) -> int:
     recipe = load_recipe(recipe_path)
     h5 = root / "quickstart_c2.h5"
     print(f"== 1/2 generate {h5} (resumes if it exists) ==", flush=True)
-    gen = argparse.Namespace(
-        recipe=str(recipe_path),
-        output=str(h5),
-        workers=args.workers,
-        scheduler=None,
-        resume=h5.exists(),
-        no_progress=args.no_progress,
-        json=None,
-        force=False,
+    common = ["--workers", str(args.workers)] if args.workers else []
+    common += ["--no-progress"] if args.no_progress else []
+    # the sub-commands' own parsers build their arguments, so no option can be missing
+    gen = build_parser().parse_args(
+        ["generate", str(recipe_path), "-o", str(h5), *common, *(["--resume"] * h5.exists())]
     )
     cmd_generate(gen)
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     out = root / f"results-{stamp}"
     print(f"\n== 2/2 evaluate DiPNet and two-step methods on {h5} ==", flush=True)
-    ev = argparse.Namespace(
-        recipe=str(h5),
-        fast=False,
-        out=str(out),
-        workers=args.workers,
-        scheduler=None,
-        no_progress=args.no_progress,
-        json=None,
-        force=False,
-    )
+    ev = build_parser().parse_args(["evaluate", str(h5), "--out", str(out), *common])
     del recipe
     return cmd_evaluate(ev)
 

@@ -95,3 +95,22 @@ def test_generate_info_and_verify_from_the_command_line(tmp_path, capsys, monkey
     assert main(["info", str(h5), "--verify"]) == 0
     assert main(["evaluate", str(recipe)]) == 2  # a dataset recipe is not an experiment
     assert "phyloc generate" in capsys.readouterr().err
+
+
+def test_quickstart_hands_complete_arguments_to_generate_and_evaluate(tmp_path, monkeypatch):
+    """quickstart calls the two sub-commands with every option they read (a Namespace built by
+    hand once lacked ``--plugin`` and crashed the README's main command)."""
+    from phyloc import cli
+
+    seen = {}
+    monkeypatch.setattr(cli, "cmd_generate", lambda a: seen.setdefault("generate", a))
+    monkeypatch.setattr(cli, "cmd_evaluate", lambda a: seen.setdefault("evaluate", a) and 0)
+    assert main(["quickstart", "--dir", str(tmp_path), "--workers", "2", "--no-progress"]) == 0
+    parser = cli.build_parser()
+    ref_gen = parser.parse_args(["generate", "r.toml", "-o", "o.h5"])
+    ref_ev = parser.parse_args(["evaluate", "o.h5"])
+    assert set(vars(seen["generate"])) == set(vars(ref_gen))
+    assert set(vars(seen["evaluate"])) == set(vars(ref_ev))
+    assert seen["evaluate"].workers == 2 and seen["evaluate"].no_progress
+    assert seen["evaluate"].plugin == []
+    assert seen["evaluate"].recipe == str(tmp_path / "quickstart_c2.h5")
