@@ -133,3 +133,17 @@ def test_no_numpy_twin_ships_in_the_package():
 @pytest.mark.parametrize("bad", ["phyloc.evaluation.metrics", "phyloc.cli"])
 def test_the_layer_check_catches_an_upward_import(bad):
     assert _layer(bad) > _layer("phyloc.localization.particles")
+
+
+def test_every_package_is_installed():
+    """A sub-package missing from pyproject's package list imports from a checkout but not
+    from an installed wheel (the test suite runs from the checkout and would not notice)."""
+    import tomllib
+
+    listed = set(
+        tomllib.loads((ROOT.parent / "pyproject.toml").read_text())["tool"]["setuptools"][
+            "packages"
+        ]
+    )
+    packages = {_module_name(p.parent / "__init__.py") for p in ROOT.rglob("__init__.py")}
+    assert packages <= listed, f"add to pyproject's packages: {sorted(packages - listed)}"
