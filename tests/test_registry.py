@@ -54,6 +54,12 @@ def test_unknown_name_lists_the_registered_ones():
         METHODS["dipnett"]
 
 
+def test_membership_and_get_answer_without_raising():
+    assert "dipnet" in METHODS and "dipnett" not in METHODS
+    assert METHODS.get("dipnett") is None
+    assert METHODS.get("dipnet") is METHODS["dipnet"]
+
+
 @dataclass(frozen=True)
 class _Opts:
     scale: float = 1.0

@@ -122,6 +122,13 @@ class Registry(Mapping):
                 "method", name, "a registered method: " + ", ".join(self._methods)
             ) from None
 
+    def __contains__(self, name) -> bool:
+        return name in self._methods
+
+    def get(self, name, default=None):
+        """The method registered as ``name``, or ``default``."""
+        return self._methods.get(name, default)
+
     def __iter__(self) -> Iterator[str]:
         return iter(self._methods)
 
