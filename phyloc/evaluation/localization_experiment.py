@@ -346,6 +346,14 @@ def _run_outputs(key, res, meas, truth):
     return out
 
 
+def _reads_tables(name: str) -> bool:
+    """True for a direct method on correlation tables (DiPNet and its variants): the rows the
+    summary and the per-iteration panels single out, chosen by the method's inputs, not its
+    name."""
+    method = REGISTRY.get(name)
+    return method is not None and method.inputs == "tables"
+
+
 def _nodes(agent_estimates, meas, agents):
     """``[n_nodes, dim]`` positions: the estimates in agents' rows, anchors where known."""
     full = np.zeros((meas.n_nodes, meas.dim))
@@ -542,7 +550,7 @@ def summary_lines(results: dict):
             ess = ", ".join(
                 f"{m} {f[f'{m}.{tag}.agents_{n}.ess_min']:.0f}"
                 for m in meta["methods"]
-                if m.startswith("dipnet")
+                if _reads_tables(m)
             )
             out.append(f"{tag}, {n} agents, smallest ESS: {ess} (of {meta['n_particles']})")
     rt = ", ".join(
@@ -596,7 +604,7 @@ def plot(results: dict, path) -> None:
     ax2 = axes[1, -1]
     tok = toks[0]
     for i, m in enumerate(meta["methods"]):
-        if not m.startswith("dipnet"):
+        if not _reads_tables(m):
             continue
         for init in meta["inits"]:
             base = f"{m}.{tok}{INITS[init]}.agents_{n}"
