@@ -85,3 +85,63 @@ def mixture_loglik_numpy(
             m = terms.max(axis=1)
             out[a] += gamma * (m + np.log(np.exp(terms - m[:, None]).sum(axis=1)))
     return out
+
+
+def _sampled_message_numpy(ell, nb_logw_v):
+    """``log Σ_i exp(lw_i + ℓ[q, i])`` per particle q (scipy's logsumexp), −inf when empty."""
+    from scipy.special import logsumexp
+
+    terms = nb_logw_v[None, :] + ell
+    with np.errstate(divide="ignore"):
+        return logsumexp(terms, axis=1) if terms.shape[1] else np.full(terms.shape[0], -np.inf)
+
+
+def _add_numpy(out_row, msg, gamma):
+    if np.any(np.isfinite(msg)) or np.any(msg > -np.inf):
+        out_row += gamma * msg
+
+
+def sampled_direct_numpy(
+    particles,
+    offsets,
+    nb_node,
+    nb_row,
+    nb_scale,
+    nb_points,
+    nb_logw,
+    nb_count,
+    values,
+    inv_h,
+    order,
+    gamma,
+):
+    """Twin of ``sampled_direct_kernel``: each link's message as a [Q_u, Q_v] matrix."""
+    interp_numpy = _naive_phy().interp_numpy
+
+    n_agents, Q, _ = particles.shape
+    out = np.zeros((n_agents, Q))
+    for a in range(n_agents):
+        for j in range(offsets[a], offsets[a + 1]):
+            v = nb_node[j]
+            pts = nb_points[v, : nb_count[v]]
+            d = np.linalg.norm(particles[a][:, None, :] - pts[None], axis=2)
+            f = interp_numpy(values, np.full(d.size, nb_row[j]), d.ravel() * inv_h, order)
+            ell = nb_scale[j] * (np.abs(f) ** 2).reshape(d.shape)
+            _add_numpy(out[a], _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]]), gamma)
+    return out
+
+
+def sampled_gauss_numpy(
+    particles, offsets, nb_node, ranges, inv_var, nb_points, nb_logw, nb_count, gamma
+):
+    """Twin of ``sampled_gauss_kernel``: each link's message as a [Q_u, Q_v] matrix."""
+    n_agents, Q, _ = particles.shape
+    out = np.zeros((n_agents, Q))
+    for a in range(n_agents):
+        for j in range(offsets[a], offsets[a + 1]):
+            v = nb_node[j]
+            pts = nb_points[v, : nb_count[v]]
+            d = np.linalg.norm(particles[a][:, None, :] - pts[None], axis=2)
+            ell = -0.5 * inv_var[j] * (d - ranges[j]) ** 2
+            _add_numpy(out[a], _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]]), gamma)
+    return out

@@ -66,6 +66,8 @@ from phyloc.localization.likelihoods import (
     DirectLikelihood,
     GaussianRangeLikelihood,
     MarginalDirectLikelihood,
+    NodeBeliefs,
+    SampledLikelihood,
 )
 
 # --- tracking family -----------------------------------------------------------------------
@@ -125,6 +127,8 @@ __all__ = [  # noqa: RUF022 (grouped by family)
     "LinkMeasurements",
     "LinkRanges",
     "MarginalDirectLikelihood",
+    "NodeBeliefs",
+    "SampledLikelihood",
     "Prior",
     "classical_mds",
     "coarse_positions",

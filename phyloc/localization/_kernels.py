@@ -93,6 +93,119 @@ def systematic_resample_kernel(weights, u0, out):
 
 
 # ---------------------------------------------------------------------------------------------
+# Sample-based (nonparametric) belief exchange
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _add_message(out_row, msg, gamma):
+    """Add ``γ·msg`` to ``out_row``; a message that is −inf at every particle (a neighbour
+    whose weights are all zero) carries no information and adds nothing."""
+    top = -np.inf
+    for q in range(msg.size):
+        top = max(top, msg[q])
+    if top == -np.inf:
+        return
+    for q in range(msg.size):
+        out_row[q] += gamma * msg[q]
+
+
+@njit(cache=True)
+def _log_sum(terms, n):
+    """``log Σ_{i<n} exp(terms[i])`` (−inf when every term is −inf)."""
+    top = -np.inf
+    for i in range(n):
+        top = max(top, terms[i])
+    if top == -np.inf:
+        return -np.inf
+    tot = 0.0
+    for i in range(n):
+        tot += np.exp(terms[i] - top)
+    return top + np.log(tot)
+
+
+@njit(cache=True, parallel=True)
+def sampled_direct_kernel(
+    particles,
+    offsets,
+    nb_node,
+    nb_row,
+    nb_scale,
+    nb_points,
+    nb_logw,
+    nb_count,
+    values,
+    inv_h,
+    order,
+    gamma,
+    out,
+):
+    """``out[a, q] = γ Σ_j log Σ_i exp(lw_{v,i} + nb_scale[j]·|f_j(‖x_{a,q} − y_{v,i}‖)|²)``.
+
+    The sample-based message of neighbour ``v = nb_node[j]``: its belief particles ``y_{v,i}``
+    (``i < nb_count[v]``, log weights ``nb_logw[v, i]``) carried through the one-path direct
+    likelihood of DiPNet eq. (22), ``log p(r_uv | d) = |f(d)|²/(σ²‖S‖²)`` with
+    ``nb_scale = 1/(σ²‖S‖²)`` (no ENV: the particles are the neighbour's uncertainty).
+    Cost ``O(Q_u·Q_v)`` per link (DiPNet Table I, "Sampled SPAWN").
+    """
+    n_agents, Q, dim = particles.shape
+    L = values.shape[1]
+    q_max = nb_points.shape[1]
+    for a in prange(n_agents):
+        terms = np.empty(q_max)
+        msg = np.empty(Q)
+        for q in range(Q):
+            out[a, q] = 0.0
+        for j in range(offsets[a], offsets[a + 1]):
+            v = nb_node[j]
+            n_v = nb_count[v]
+            row = nb_row[j]
+            s = nb_scale[j]
+            for q in range(Q):
+                for i in range(n_v):
+                    acc = 0.0
+                    for k in range(dim):
+                        t = particles[a, q, k] - nb_points[v, i, k]
+                        acc += t * t
+                    f = _lagrange_eval(values, row, L, np.sqrt(acc) * inv_h, order)
+                    terms[i] = nb_logw[v, i] + s * (f.real * f.real + f.imag * f.imag)
+                msg[q] = _log_sum(terms, n_v)
+            _add_message(out[a], msg, gamma)
+
+
+@njit(cache=True, parallel=True)
+def sampled_gauss_kernel(
+    particles, offsets, nb_node, ranges, inv_var, nb_points, nb_logw, nb_count, gamma, out
+):
+    """``out[a, q] = γ Σ_j log Σ_i exp(lw_{v,i} − ½ inv_var[j]·(‖x_{a,q} − y_{v,i}‖ − r_j)²)``.
+
+    The sample-based message of the Gaussian ranging model (two-step, sample-based SAGE):
+    range ``r_j`` with its model variance ``1/inv_var[j]``, the neighbour's belief particles in
+    place of its mean and the ERV of DiPNet eq. (18).
+    """
+    n_agents, Q, dim = particles.shape
+    q_max = nb_points.shape[1]
+    for a in prange(n_agents):
+        terms = np.empty(q_max)
+        msg = np.empty(Q)
+        for q in range(Q):
+            out[a, q] = 0.0
+        for j in range(offsets[a], offsets[a + 1]):
+            v = nb_node[j]
+            n_v = nb_count[v]
+            r = ranges[j]
+            w = 0.5 * inv_var[j]
+            for q in range(Q):
+                for i in range(n_v):
+                    acc = 0.0
+                    for k in range(dim):
+                        t = particles[a, q, k] - nb_points[v, i, k]
+                        acc += t * t
+                    e = np.sqrt(acc) - r
+                    terms[i] = nb_logw[v, i] - w * e * e
+                msg[q] = _log_sum(terms, n_v)
+            _add_message(out[a], msg, gamma)
+
+
+# ---------------------------------------------------------------------------------------------
 # Marginal (peak-mixture) equivalent likelihood
 # ---------------------------------------------------------------------------------------------
 @njit(cache=True, parallel=True)

@@ -12,6 +12,12 @@ projected neighbour variance ``σ²_{v→uv} = e_uvᵀ C_v e_uv`` (DiPNet eq. (1
     ``log p̃ = −(‖p_u − p̂_v‖ − r̂_uv)² / (2(var_uv + σ²_{v→uv}))``: the Gaussian ranging model
     with the equivalent ranging variance (ERV) of DiPNet eq. (18).
 
+:class:`SampledLikelihood` (sample-based DPE / SAGE)
+    the nonparametric alternative: a neighbour is its *particle set*, and its message
+    ``log Σ_i w_v^i p(r_uv | ‖x − x_v^i‖)`` carries the direct likelihood of DiPNet eq. (22) or
+    the Gaussian ranging model through every particle (DiPNet §V-B; DiPNet Table I, "Sampled
+    SPAWN", cost O(Q_u·Q_v) per link).
+
 Links are the directed pairs ``(u, v)`` with u an agent (u uses its own received signal from
 v). Tempering multiplies every log-likelihood by γ ∈ (0, 1]. The ENV and the ranging
 information are those of :mod:`phyloc.analysis.efim` (one implementation of each equation).
@@ -346,3 +352,119 @@ class MarginalDirectLikelihood:
         top = np.full(n_links, -np.inf)
         np.maximum.at(top, link_of_peak, height)
         return np.maximum(0.0, top - self.outlier_nats)
+
+
+class NodeBeliefs:
+    """Every node's belief as weighted points, padded to one array (the sample-based exchange).
+
+    Anchors are one point (their position) with log weight 0; agents are their particles with
+    their normalized log weights. Rows beyond a node's count are padded with ``−inf`` weights.
+
+    Attributes
+    ----------
+    points : [n_nodes, Q_max, dim] float64
+    log_weights : [n_nodes, Q_max] float64
+    count : [n_nodes] int64
+    """
+
+    def __init__(self, centers, agent_nodes, particles, log_weights):
+        centers = np.asarray(centers, dtype=np.float64)
+        X = np.asarray(particles, dtype=np.float64)
+        lw = np.asarray(log_weights, dtype=np.float64)
+        n_nodes, dim = centers.shape
+        n_agents, Q = lw.shape
+        if X.shape != (n_agents, Q, dim) or len(agent_nodes) != n_agents:
+            raise ValidationError(
+                "particles",
+                f"shape {X.shape}",
+                f"[{len(agent_nodes)}, {Q}, {dim}] (one set per agent)",
+            )
+        self.points = np.zeros((n_nodes, max(Q, 1), dim))
+        self.log_weights = np.full((n_nodes, max(Q, 1)), -np.inf)
+        self.count = np.ones(n_nodes, np.int64)
+        self.points[:, 0] = centers
+        self.log_weights[:, 0] = 0.0
+        self.points[agent_nodes, :Q] = X
+        self.log_weights[agent_nodes, :Q] = lw
+        self.count[agent_nodes] = Q
+
+    @classmethod
+    def single(cls, centers) -> NodeBeliefs:
+        """Every node a Dirac at ``centers`` (the anchor case)."""
+        c = np.asarray(centers, dtype=np.float64)
+        return cls(c, np.zeros(0, np.int64), np.zeros((0, 1, c.shape[1])), np.zeros((0, 1)))
+
+
+class SampledLikelihood:
+    """Sample-based belief exchange (nonparametric message passing, DiPNet §V-B).
+
+    The message of neighbour v at the particle ``x`` of agent u is the neighbour's belief
+    particles carried through the link likelihood,
+
+    .. math:: \\log m_{v\\to u}(x) = \\log \\sum_i w_v^i\\, p(r_{uv} \\mid \\|x - x_v^i\\|),
+
+    with the one-path direct likelihood of DiPNet eq. (22) (``base`` a
+    :class:`DirectLikelihood`: sample-based DPE) or the Gaussian ranging model
+    (``base`` a :class:`GaussianRangeLikelihood`: sample-based SAGE). Anchors are single
+    particles, so a Dirac neighbour gives exactly the anchor likelihood. No ENV or ERV: the
+    particles carry the neighbour's uncertainty. The cost is ``O(Q_u·Q_v)`` per link
+    (DiPNet Table I, "Sampled SPAWN"), and ``Q_v·(dim + 1)`` floats cross the link per iteration.
+
+    Parameters
+    ----------
+    base : DirectLikelihood or GaussianRangeLikelihood
+        The link model; its ENV/ERV setting is ignored.
+    """
+
+    kind = "sampled"
+    exchange = "particles"
+
+    def __init__(self, base):
+        if not isinstance(base, DirectLikelihood | GaussianRangeLikelihood):
+            raise ValidationError(
+                "base", type(base).__name__, "a DirectLikelihood or a GaussianRangeLikelihood"
+            )
+        self.base = base
+        self.csr = base.csr
+        self.nu = base.nu
+
+    def loglik(self, particles, centers, covs, gamma=1.0, *, beliefs=None) -> np.ndarray:
+        """``γ Σ_v log m_{v→u}(x)`` for every particle, ``[n_agents, Q]``.
+
+        ``beliefs`` (:class:`NodeBeliefs`) are the neighbours' particle sets; None treats
+        every neighbour as a Dirac at ``centers`` (the moment exchange's view).
+        """
+        b = NodeBeliefs.single(centers) if beliefs is None else beliefs
+        out = np.empty(particles.shape[:2])
+        base = self.base
+        x = np.ascontiguousarray(particles, dtype=np.float64)
+        if isinstance(base, DirectLikelihood):
+            K.sampled_direct_kernel(
+                x,
+                base.csr.offsets,
+                base.csr.tx,
+                base.rows,
+                1.0 / (base.noise_var * base.energy),
+                b.points,
+                b.log_weights,
+                b.count,
+                base.table.values,
+                base.ways / base.table.spacing_m,
+                base.order,
+                float(gamma),
+                out,
+            )
+        else:
+            K.sampled_gauss_kernel(
+                x,
+                base.csr.offsets,
+                base.csr.tx,
+                base.ranges,
+                1.0 / base.var,
+                b.points,
+                b.log_weights,
+                b.count,
+                float(gamma),
+                out,
+            )
+        return out

@@ -16,6 +16,13 @@ package registers the named variants in :data:`phyloc.localization.METHODS`:
 ``sage_los``          the two-step EL-DPF on SAGE ranges of LOS links only — an oracle
                       benchmark (NLOS links rejected by ground truth); inputs
                       ``"ranges:sage_los"``
+``sage_parametric``   the name DiPNet §V-B gives ``sage`` (Gaussian beliefs exchanged):
+                      the same method under its paper name
+``dpe_sampled``       sample-based DPE: neighbours exchange particle sets, each message the
+                      direct likelihood of DiPNet eq. (22) through every neighbour particle
+                      (DiPNet §V-B, Table I "Sampled SPAWN"); inputs ``"tables"``
+``sage_sampled``      sample-based SAGE: the same exchange with SAGE ranges and their Gaussian
+                      variance; inputs ``"ranges:sage"``
 
 A method's ``inputs`` tells an experiment which measurements to build: ``"tables"`` the
 correlation tables, ``"ranges:<name>"`` the ranges of estimator ``<name>``, which its options'
@@ -38,7 +45,13 @@ Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 
 from phyloc.localization.direct.dpf import DPFOptions, DPFResult, Prior, predict, run_dpf
 from phyloc.localization.direct.measurements import LinkMeasurements, LinkRanges
-from phyloc.localization.direct.method import LIKELIHOODS, DirectOptions, link_likelihood, run
+from phyloc.localization.direct.method import (
+    EXCHANGES,
+    LIKELIHOODS,
+    DirectOptions,
+    link_likelihood,
+    run,
+)
 from phyloc.localization.registry import register_method
 
 
@@ -86,10 +99,43 @@ _register(
     "two-step EL-DPF on SAGE ranges of LOS links only (oracle: NLOS rejected by ground truth)",
 )
 
+_register(
+    "sage_parametric",
+    "ranges:sage",
+    "parametric SAGE",
+    "two-step EL-DPF on SAGE ranges, Gaussian beliefs exchanged (DiPNet §V-B name of sage)",
+)
+_register(
+    "dpe_sampled",
+    "tables",
+    "sample-based DPE",
+    "DPF with neighbours' particle sets through the direct likelihood (DiPNet eq. (22)), O(Q^2)",
+    likelihood="env",
+    exchange="particles",
+)
+_register(
+    "sage_sampled",
+    "ranges:sage",
+    "sample-based SAGE",
+    "DPF with neighbours' particle sets through Gaussian SAGE ranges, O(Q^2) per link",
+    exchange="particles",
+)
+
 #: The names of the direct family's methods, in registration order.
-NAMES = ("dipnet", "dipnet_published", "corr", "first_peak", "sage", "sage_los")
+NAMES = (
+    "dipnet",
+    "dipnet_published",
+    "corr",
+    "first_peak",
+    "sage",
+    "sage_los",
+    "sage_parametric",
+    "dpe_sampled",
+    "sage_sampled",
+)
 
 __all__ = [
+    "EXCHANGES",
     "LIKELIHOODS",
     "NAMES",
     "DPFOptions",

@@ -27,6 +27,10 @@ phyloc's default adds three safeguards, each an option::
                        (the EFIM of DiPNet eq. (17), :func:`phyloc.analysis.efim.efim`) at the
                        current means.
 
+A likelihood whose ``exchange`` is ``"particles"``
+(:class:`~phyloc.localization.likelihoods.SampledLikelihood`) receives the neighbours' particle
+sets of the previous iteration instead of their moments (sample-based DPE / SAGE, DiPNet §V-B).
+
 Weights stay in the log domain; an agent whose weights are all ``−inf`` or NaN (an empty
 likelihood) falls back to uniform weights and is counted in ``n_degenerate``.
 
@@ -53,6 +57,7 @@ from phyloc._validate import check_keys
 from phyloc.analysis.efim import efim, position_crb
 from phyloc.errors import ValidationError
 from phyloc.localization import particles as P
+from phyloc.localization.likelihoods import NodeBeliefs
 
 
 @dataclass(frozen=True)
@@ -284,7 +289,8 @@ def run_dpf(
     ll_old = np.zeros((n_agents, Q))  # log-likelihood of the target the particles represent
     old_fn = None  # evaluates ll_old at other particles (None: the prior, ll ≡ 0)
     for k in range(1, K_it + 1):
-        new_fn = _frozen_loglik(likelihood, centers, covs, 1.0 if moving else options.gamma(k))
+        gamma = 1.0 if moving else options.gamma(k)
+        new_fn = _frozen_loglik(likelihood, centers, covs, gamma, agent_nodes, X, lw)
         ll_new = new_fn(X)
         if not moving:  # DiPNet eq. (28): reweight the prior particles by the product of ELs
             lw, bad = P.normalize_log_weights(lw0 + ll_new)
@@ -322,9 +328,17 @@ def run_dpf(
     )
 
 
-def _frozen_loglik(likelihood, centers, covs, gamma):
-    """The log-likelihood with the neighbours' moments of one iteration frozen."""
+def _frozen_loglik(likelihood, centers, covs, gamma, agent_nodes, X, lw):
+    """The log-likelihood with the neighbours' beliefs of one iteration frozen: their moments,
+    or (a likelihood with ``exchange == "particles"``) their particle sets ``X``, ``lw``."""
     c, v = centers.copy(), covs.copy()
+    if getattr(likelihood, "exchange", "moments") == "particles":
+        beliefs = NodeBeliefs(c, agent_nodes, X, lw)
+
+        def fn(x):
+            return likelihood.loglik(x, c, v, gamma=gamma, beliefs=beliefs)
+
+        return fn
 
     def fn(x):
         return likelihood.loglik(x, c, v, gamma=gamma)

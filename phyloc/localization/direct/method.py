@@ -14,9 +14,13 @@ any estimator) is :func:`run` with different :class:`DirectOptions`: the option
                 ``ranges`` with the ERV of DiPNet eq. (18)
                 (:class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood`)
 
-— and ``safeguards`` chooses between phyloc's safeguarded filter and DiPNet Algorithm 1 as
-published. Snapshot 0 runs the filter from the prior (:func:`~.dpf.run_dpf`); each later
-snapshot predicts the particles (:func:`~.dpf.predict`) and runs the filter's iterations again.
+— ``exchange`` chooses what neighbours share: ``"moments"`` (mean and covariance, DiPNet
+Algorithm 1 line 5) or ``"particles"`` (their particle sets: sample-based DPE with ``"env"``,
+sample-based SAGE with ``"gaussian"``, DiPNet §V-B;
+:class:`~phyloc.localization.likelihoods.SampledLikelihood`) — and ``safeguards`` chooses
+between phyloc's safeguarded filter and DiPNet Algorithm 1 as published. Snapshot 0 runs the
+filter from the prior (:func:`~.dpf.run_dpf`); each later snapshot predicts the particles
+(:func:`~.dpf.predict`) and runs the filter's iterations again.
 
 Examples
 --------
@@ -66,11 +70,14 @@ from phyloc.localization.likelihoods import (
     DirectLikelihood,
     GaussianRangeLikelihood,
     MarginalDirectLikelihood,
+    SampledLikelihood,
 )
 from phyloc.localization.results import Result, Timing
 
 LIKELIHOODS = ("marginal", "env", "gaussian")
 """Values of :attr:`DirectOptions.likelihood`."""
+EXCHANGES = ("moments", "particles")
+"""Values of :attr:`DirectOptions.exchange`."""
 
 
 @dataclass(frozen=True)
@@ -84,6 +91,10 @@ class DirectOptions:
         ``tempering``, ``resample_move``, …) sit beside the keys below.
     likelihood : {"marginal", "env", "gaussian"}
         The link likelihood (see the module docstring).
+    exchange : {"moments", "particles"}
+        What a neighbour shares: its mean and covariance (DiPNet Algorithm 1) or its particle
+        set (sample-based exchange, DiPNet §V-B; likelihood ``"env"`` or ``"gaussian"`` only,
+        used without ENV/ERV).
     ranges : str
         Range estimator whose ranges the ``"gaussian"`` likelihood reads
         (``measurements.ranges[ranges]``).
@@ -103,6 +114,7 @@ class DirectOptions:
 
     dpf: DPFOptions = field(default_factory=DPFOptions)
     likelihood: str = "marginal"
+    exchange: str = "moments"
     ranges: str = "corr"
     outlier_nats: float = 10.0
     safeguards: bool = True
@@ -114,6 +126,13 @@ class DirectOptions:
         if not isinstance(self.dpf, DPFOptions):
             raise ValidationError("dpf", type(self.dpf).__name__, "a DPFOptions")
         v.choice("likelihood", self.likelihood, LIKELIHOODS)
+        v.choice("exchange", self.exchange, EXCHANGES)
+        if self.exchange == "particles" and self.likelihood == "marginal":
+            raise ValidationError(
+                "exchange",
+                self.exchange,
+                "'moments' with likelihood 'marginal' ('particles' needs 'env' or 'gaussian')",
+            )
         if not isinstance(self.ranges, str) or not self.ranges:
             raise ValidationError("ranges", self.ranges, "the name of a range estimator")
         if not float(self.outlier_nats) > 0:
@@ -146,6 +165,9 @@ def link_likelihood(measurements: LinkMeasurements, t: int, options: DirectOptio
     """The link likelihood of snapshot ``t`` that ``options.likelihood`` names."""
     m = measurements
     links, agent_of, n = m.links[t], m.agent_of_node(), m.n_agents
+    if options.exchange == "particles":
+        moments = dataclasses.replace(options, exchange="moments")
+        return SampledLikelihood(link_likelihood(m, t, moments))
     if options.likelihood == "marginal":
         return MarginalDirectLikelihood(
             m.table(t),
