@@ -4,7 +4,13 @@ A recipe of ``kind = "localization"`` runs, for every scenario token, network si
 realization: a network (``[network]``, anchor-free and fully meshed in the paper), channel draws,
 received signals and correlation tables, the range estimators, and then every method of
 ``experiment.methods`` under every initialization of ``experiment.inits`` — all on the *same*
-waveforms and, per initialization, from the *same* prior particles::
+waveforms and, per initialization, from the *same* prior particles (per particle count).
+
+A network with motion (``[network.motion]``, or a stored dataset with several snapshots) is
+localized over **all** its snapshots: snapshot 0 from the prior, every later snapshot from the
+prediction of the previous belief with the methods' mobility model (the DPF of
+:func:`phyloc.localization.direct.run`, ``process_std_m``; DiPNet §II-C), the same model for
+every agent. Errors are then pooled over snapshots; the RMSE per snapshot is a series. Methods::
 
     ``dipnet``            DiPNet with phyloc's safeguards: the marginal equivalent likelihood
                           (:class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`,
@@ -33,13 +39,16 @@ Initializations (labelled in every figure name)::
                           pitfall)
 
 Figures: ``<method>.<token>.agents_<n>.framework_rmse_m`` (DiPNet eq. (4), pooled over
-realizations),
+realizations and snapshots), ``<method>.<token>.agents_<n>.agent_snapshot_s`` (filter time per
+agent and snapshot),
 ``<method>.<token>.agents_<n>.shape_difference_m`` (DiPNet eq. (1)),
 ``<method>.<token>.agents_<n>.ess_min`` (smallest effective sample size of any agent in any
 iteration, mean over runs),
 ``<method>.runtime_per_agent_iteration_s``, ``<s>.link_bias.<los|nlos>_mean_m`` (correlation-peak
-range bias). Series: error CDFs at ``experiment.cdf_agents``, and per iteration at the largest
-network: mean ESS, published std ``sqrt(tr C/dim)`` and actual error of the published means.
+range bias, pooled over snapshots). Series: error CDFs at ``experiment.cdf_agents``, per
+iteration at the largest network (snapshot 0): mean ESS, published std ``sqrt(tr C/dim)`` and
+actual error of the published means; with several snapshots
+``<method>.<token>.agents_<n>.rmse_by_snapshot``.
 
 References
 ----------
@@ -184,10 +193,9 @@ class LocalizationExperimentSpec:
         return experiment_from_dict(cls, d, fast=fast)
 
 
-def _priors(init, net, links, corr, lspec, rng):
-    """Prior particles and log density of one initialization (agents only)."""
+def _priors(init, net, links, corr, lspec, Q, rng):
+    """Prior particles (``Q`` per agent) and log density of one initialization (agents only)."""
     agents = net.agent_index
-    Q = lspec.dpf.n_particles
     pos = net.positions[0]
     if init == "gauge":
         X = gauge_priors(agents.size, net.dim, Q, lspec.gauge_extent_m, rng)
@@ -241,14 +249,14 @@ def _dataset_task(payload, seed_seq):
     return _localize(real, system, rspec, lspec, methods, inits, seed_seq)
 
 
-def _measurements(real, table, rspec, methods):
-    """The measurements of snapshot 0 of a realization, for every method's ``inputs``.
+def _measurements(real, tables, rspec, methods):
+    """The measurements of every snapshot of a realization, for every method's ``inputs``.
 
     Correlation tables, and the ranges of ``"corr"`` (the truth-free initialization and the
     link-bias figures read them) and of every estimator a method's ``inputs`` names
     (``"ranges:<estimator>"``; the oracle ``"sage_los"`` gets the true LOS flags here, in
-    the evaluation)."""
-    net, links, draw = real.network, real.links[0], real.channels[0]
+    the evaluation). Returns the measurements and, per estimator, its estimates per snapshot."""
+    net = real.network
     ways = real.ways
     names = {"corr"}
     for m in methods:
@@ -257,22 +265,30 @@ def _measurements(real, table, rspec, methods):
             names.add(inputs.split(":", 1)[1])
     ranges = {}
     for name in sorted(names):
-        e = estimate(name, table, los=draw.los, **rspec.method_options(name))
-        if ways != 1:  # two-way tables measure the round trip
-            e = dataclasses.replace(
-                e, range_m=e.range_m / ways, variance_m2=e.variance_m2 / ways**2
-            )
-        ranges[name] = e
+        per_t = []
+        for table, draw in zip(tables, real.channels, strict=True):
+            e = estimate(name, table, los=draw.los, **rspec.method_options(name))
+            if ways != 1:  # two-way tables measure the round trip
+                e = dataclasses.replace(
+                    e, range_m=e.range_m / ways, variance_m2=e.variance_m2 / ways**2
+                )
+            per_t.append(e)
+        ranges[name] = per_t
     anchors = net.anchor_index
     meas = LinkMeasurements(
         n_nodes=net.n_nodes,
         dim=net.dim,
         anchor_nodes=anchors,
-        anchor_positions=net.positions[0][anchors][None],
-        links=(links,),
-        tables=(table,),
+        anchor_positions=net.positions[:, anchors],
+        links=tuple(real.links),
+        tables=tuple(tables),
         ranges={
-            k: LinkRanges((e.range_m,), (e.variance_m2,), (e.valid,)) for k, e in ranges.items()
+            k: LinkRanges(
+                tuple(e.range_m for e in es),
+                tuple(e.variance_m2 for e in es),
+                tuple(e.valid for e in es),
+            )
+            for k, es in ranges.items()
         },
         ways=ways,
         window_m=rspec.window_m,
@@ -280,56 +296,84 @@ def _measurements(real, table, rspec, methods):
     return meas, ranges
 
 
-def _localize(real, system, rspec, lspec, methods, inits, seed_seq):
-    """Ranging and every localization method on snapshot 0 of a realization.
+def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particles=()):
+    """Ranging and every localization method on every snapshot of a realization.
 
     The randomness of the priors and of each method comes from children of ``seed_seq``
-    (spawned after the signals were drawn from the sequence itself)."""
+    (spawned after the signals were drawn from the sequence itself). The prior of an
+    initialization is drawn from that initialization's stream for each particle count a method
+    asks for, so methods with equal ``n_particles`` start from the same particles. Snapshot 0
+    starts from the prior; later snapshots predict with the methods' mobility model
+    (``process_std_m``, DiPNet §II-C)."""
     streams = seed_seq.spawn(2 + len(inits) * (1 + len(methods)))
-    net, links, draw = real.network, real.links[0], real.channels[0]
-    d = net.distances(0)
-    tx = links[:, 1]
-    table = correlation_tables(real.received[0], real.symbols, system, beta=rspec.beta, tx_index=tx)
-    meas, ests = _measurements(real, table, rspec, methods)
-    truth = net.positions[0]  # enters the metrics only
+    net = real.network
+    tables = [
+        correlation_tables(rec, real.symbols, system, beta=rspec.beta, tx_index=lk[:, 1])
+        for rec, lk in zip(real.received, real.links, strict=True)
+    ]
+    meas, ests = _measurements(real, tables, rspec, methods)
+    corr0 = ests["corr"][0]
     out = {
-        "link_err_corr": ests["corr"].range_m - d,
-        "link_valid_corr": ests["corr"].valid,
-        "los": np.asarray(draw.los, bool),
+        "link_err_corr": np.concatenate(
+            [e.range_m - net.distances(t) for t, e in enumerate(ests["corr"])]
+        ),
+        "link_valid_corr": np.concatenate([e.valid for e in ests["corr"]]),
+        "los": np.concatenate([np.asarray(d.los, bool) for d in real.channels]),
     }
     s = 2
     for init in inits:
-        prior = _priors(init, net, links, ests["corr"], lspec, np.random.default_rng(streams[s]))
+        prior_seed = streams[s]
         s += 1
+        priors = {}
         for m in methods:
             rng_m = np.random.default_rng(streams[s])
             s += 1
             method = REGISTRY[m]
-            res = method.run(meas, prior, rng_m, lspec.options_for(m))
-            key = f"{m}|{init}"
-            out.update(_run_outputs(key, res, meas, truth))
+            opts = lspec.options_for(m)
+            Q = opts.dpf.n_particles if isinstance(opts, DirectOptions) else lspec.dpf.n_particles
+            if Q not in priors:
+                rng_p = np.random.default_rng(prior_seed)
+                priors[Q] = _priors(init, net, real.links[0], corr0, lspec, Q, rng_p)
+            if keep_particles and isinstance(opts, DirectOptions):
+                opts = dataclasses.replace(opts, keep_particles=tuple(keep_particles))
+            res = method.run(meas, priors[Q], rng_m, opts)
+            out.update(_run_outputs(f"{m}|{init}", res, meas, net.positions))
     return out
 
 
 def _run_outputs(key, res, meas, truth):
     """Metrics of one run (``res``, a Result) against the truth, keyed ``key|<what>``.
 
-    The per-iteration series read the direct family's diagnostics (``mean_history``,
-    ``cov_trace_history``, ``ess_history``); a method without them (a user's method) gives its
-    final estimate as the only "iteration" and NaN for the ESS."""
+    ``truth [T, n_nodes, dim]`` enters only here. Errors are pooled over snapshots (``err``),
+    with the RMSE per snapshot (``rmse_t``) and the estimates (``estimates``, for trajectory
+    figures). The per-iteration series read snapshot 0 of the direct family's diagnostics
+    (``mean_history``, ``cov_trace_history``, ``ess_history``); a method without them (a
+    user's method) gives its final estimate as the only "iteration" and NaN for the ESS."""
     dim, is_anchor = meas.dim, meas.is_anchor
     agents = meas.agent_nodes
     diag = res.diagnostics
-    est = _nodes(res.estimates[0], meas, agents)
+    T = res.estimates.shape[0]
+    errs = [
+        framework_distance_errors(_nodes(res.estimates[t], meas, agents, t), truth[t], is_anchor)
+        for t in range(T)
+    ]
     history = diag["mean_history"][0] if "mean_history" in diag else res.estimates[:1]
+    est0 = _nodes(res.estimates[0], meas, agents)
     out = {
-        key + "|err": framework_distance_errors(est, truth, is_anchor),
-        key + "|shape": shape_difference(est, truth, is_anchor),
+        key + "|err": np.concatenate(errs),
+        key + "|rmse_t": np.array([math.sqrt(np.mean(e**2)) for e in errs]),
+        key + "|estimates": np.asarray(res.estimates),
+        key + "|shape": shape_difference(est0, truth[0], is_anchor),
         key + "|actual_err": np.array(
-            [shape_difference(_nodes(mk, meas, agents), truth, is_anchor) for mk in history]
+            [shape_difference(_nodes(mk, meas, agents), truth[0], is_anchor) for mk in history]
         )
         / math.sqrt(dim),
         key + "|sec_per_agent_it": res.timing.per_agent_iteration_s,
+        key + "|agent_snapshot_s": float(np.mean(res.timing.agent_s)),
+        key + "|particles_at": {
+            t: (np.asarray(X), np.asarray(lw))
+            for t, (X, lw) in diag.get("particles_at", {}).items()
+        },
     }
     if "ess_history" in diag:
         ess = diag["ess_history"][0]
@@ -354,10 +398,11 @@ def _reads_tables(name: str) -> bool:
     return method is not None and method.inputs == "tables"
 
 
-def _nodes(agent_estimates, meas, agents):
-    """``[n_nodes, dim]`` positions: the estimates in agents' rows, anchors where known."""
+def _nodes(agent_estimates, meas, agents, t=0):
+    """``[n_nodes, dim]`` positions at snapshot ``t``: the estimates in agents' rows, anchors
+    where known."""
     full = np.zeros((meas.n_nodes, meas.dim))
-    full[meas.anchor_nodes] = meas.anchor_positions[0]
+    full[meas.anchor_nodes] = meas.anchor_positions[t]
     full[agents] = agent_estimates
     return full
 
@@ -448,6 +493,12 @@ def _aggregate(keys, results, exp, tokens):
                         math.sqrt(np.mean([r[key + "|shape"] ** 2 for r in runs]))
                     )
                     figures[base + ".ess_min"] = float(np.mean([r[key + "|ess_min"] for r in runs]))
+                    figures[base + ".agent_snapshot_s"] = float(
+                        np.mean([r[key + "|agent_snapshot_s"] for r in runs])
+                    )
+                    rmse_t = np.array([r[key + "|rmse_t"] for r in runs])
+                    if rmse_t.shape[1] > 1:  # tracking: RMSE per snapshot over realizations
+                        series[base + ".rmse_by_snapshot"] = np.sqrt(np.mean(rmse_t**2, axis=0))
                     if n in exp.cdf_agents:
                         series[base + ".error_cdf"] = (
                             np.searchsorted(np.sort(err), CDF_GRID_M, side="right") / err.size
@@ -567,9 +618,11 @@ def plot(results: dict, path) -> None:
 
     f, ser, meta = results["figures"], results["series"], results["meta"]
     toks = list(meta["scenarios"])
-    fig = Figure(figsize=(4.6 * len(toks) + 4.6, 8.0), layout="constrained")
+    tracking = any(k.endswith(".rmse_by_snapshot") for k in ser)
+    n_rows = 3 if tracking else 2
+    fig = Figure(figsize=(4.6 * len(toks) + 4.6, 4.0 * n_rows), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(2, len(toks) + 1, squeeze=False)
+    axes = fig.subplots(n_rows, len(toks) + 1, squeeze=False)
     agents = meta["agents"]
     for j, tok in enumerate(toks):
         ax = axes[0, j]
@@ -630,10 +683,29 @@ def plot(results: dict, path) -> None:
     ax2.set_xlabel("iteration")
     ax2.legend(fontsize=6)
     ax2.grid(True, which="both", alpha=0.3)
+    if tracking:
+        _plot_tracks(axes[2], ser, meta, toks)
     fig.suptitle(
         f"Direct vs two-step localization — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
     )
     fig.savefig(path, dpi=100)
+
+
+def _plot_tracks(axes, ser, meta, toks):
+    """Per-snapshot framework RMSE of every method (truth-free start), one panel per token."""
+    n = max(meta["agents"])
+    for j, tok in enumerate(toks):
+        ax = axes[j]
+        for i, m in enumerate(meta["methods"]):
+            k = f"{m}.{tok}.agents_{n}.rmse_by_snapshot"
+            if k in ser:
+                ax.semilogy(np.asarray(ser[k]), color=f"C{i}", label=m)
+        ax.set_title(f"{tok}, {n} agents: framework RMSE per snapshot")
+        ax.set_xlabel("snapshot")
+        ax.set_ylabel("RMSE [m]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=6)
+    axes[-1].set_axis_off()
 
 
 def _cdf_sizes(ser, meta, tok):

@@ -110,6 +110,9 @@ class DirectOptions:
         Resample between snapshots when the ESS falls below this fraction of Q.
     regularize : bool
         Jitter resampled particles (regularized particle filter, PF-BP eq. (32)).
+    keep_particles : tuple of int
+        Snapshots whose final particles and log weights ``run`` keeps in its diagnostics
+        (``particles_at``); default none.
     """
 
     dpf: DPFOptions = field(default_factory=DPFOptions)
@@ -121,6 +124,7 @@ class DirectOptions:
     process_std_m: float = 1.0
     resample_ess: float = 0.5
     regularize: bool = True
+    keep_particles: tuple = ()
 
     def __post_init__(self):
         if not isinstance(self.dpf, DPFOptions):
@@ -140,6 +144,10 @@ class DirectOptions:
         v.positive("process_std_m", self.process_std_m, allow_zero=True)
         if not 0 <= float(self.resample_ess) <= 1:
             raise ValidationError("resample_ess", self.resample_ess, "in [0, 1]")
+        keep = tuple(
+            v.integer("keep_particles", t, minimum=0) for t in np.atleast_1d(self.keep_particles)
+        )
+        object.__setattr__(self, "keep_particles", keep)
 
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> DirectOptions:
@@ -227,7 +235,8 @@ def run(
         covariances [m²]; ``ess_history [T, K, n_agents]`` effective sample size after
         weighting; ``n_degenerate [T]`` weight vectors that fell back to uniform;
         ``annealing_steps [T]`` tempering steps of the safeguarded filter; ``setup_s`` [s]
-        building the likelihoods.
+        building the likelihoods; ``particles_at`` ``{t: (particles, log_weights)}`` at the
+        snapshots of ``options.keep_particles``.
 
         ``timing.wall_s`` is the filter's time (prediction and iterations, likelihood setup
         excluded) and ``timing.agent_iterations = T·n_agents·K``, so
@@ -242,6 +251,7 @@ def run(
     opts0 = options.filter_options()
     fixed = dataclasses.replace(opts0, resample_move=False)
     steps, setup_s, step_s = [], 0.0, np.zeros(m.n_snapshots)
+    kept, prev = {}, None
     for t in range(m.n_snapshots):
         t0 = time.perf_counter()
         lik = link_likelihood(m, t, options)
@@ -252,7 +262,7 @@ def run(
         else:
             t1 = time.perf_counter()
             X, lw = predict(
-                steps[-1],
+                prev,
                 rng,
                 process_std_m=options.process_std_m,
                 resample_ess=options.resample_ess,
@@ -263,8 +273,11 @@ def run(
                 lik, Prior(X, None, prior.label, lw), m.anchor_positions[t], is_anchor, rng, fixed
             )
             step_s[t] = pred_s + res.seconds
-        steps.append(res)
-    last = steps[-1]
+        if t in options.keep_particles:
+            kept[t] = (res.particles, res.log_weights)
+        prev = res  # the only particle set kept: a long track holds T small summaries
+        steps.append(dataclasses.replace(res, particles=None, log_weights=None))
+    last = prev
     n_agents = agents.size
     timing = Timing(
         wall_s=float(step_s.sum()),
@@ -279,6 +292,7 @@ def run(
         "n_degenerate": np.array([r.n_degenerate for r in steps]),
         "annealing_steps": np.array([r.annealing_steps for r in steps]),
         "setup_s": setup_s,
+        "particles_at": kept,
     }
     return Result(
         estimates=np.stack([r.means[agents] for r in steps]),
