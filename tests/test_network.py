@@ -16,6 +16,7 @@ from phyloc.network import (
     anchor_positions,
     make_network,
     noise_gain_matrix,
+    pentagon,
     simulate_motion,
     transition_matrices,
 )
@@ -381,3 +382,99 @@ def test_network_rejects_moving_anchors_and_is_read_only():
         net.positions[0, 0, 0] = 5.0
     with pytest.raises(ValidationError, match="snapshot"):
         net.links_at(1)
+
+
+# -- explicit agents, pentagon, unchanged draws -----------------------------------------------
+
+
+@pytest.mark.parametrize(("diameter", "rotation"), [(15.0, 90.0), (30.0, 17.0)])
+def test_pentagon_is_regular_with_the_circumscribed_diameter(diameter, rotation):
+    centre = np.array([25.0, 40.0])
+    pts = pentagon(diameter, centre, rotation_deg=rotation)
+    assert pts.shape == (5, 2)
+    np.testing.assert_allclose(np.linalg.norm(pts - centre, axis=1), diameter / 2, rtol=1e-14)
+    sides = np.linalg.norm(pts - np.roll(pts, -1, axis=0), axis=1)
+    np.testing.assert_allclose(sides, diameter * math.sin(math.radians(36.0)), rtol=1e-14)
+    np.testing.assert_allclose(pts.mean(axis=0), centre, atol=1e-12)
+    first = math.radians(rotation)
+    np.testing.assert_allclose(
+        pts[0], centre + diameter / 2 * np.array([math.cos(first), math.sin(first)])
+    )
+    # counter-clockwise: positive signed area (shoelace) = (5/8) D² sin 72°
+    x, y = pts[:, 0], pts[:, 1]
+    area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    np.testing.assert_allclose(area, 5 / 8 * diameter**2 * math.sin(math.radians(72.0)))
+    with pytest.raises(ValidationError) as err:
+        pentagon(0.0, centre)
+    assert err.value.field == "diameter_m"
+    with pytest.raises(ValidationError) as err:
+        pentagon(1.0, [0.0, 0.0, 0.0])
+    assert err.value.field == "center"
+
+
+def test_explicit_agents_draw_nothing_for_them():
+    agents = [[1.0, 2.0], [-3.0, 4.0], [150.0, 7.5]]  # outside the region is allowed
+    spec = NetworkSpec(n_agents=3, anchors=2, anchor_layout="uniform", agents_m=agents)
+    net = make_network(spec, np.random.default_rng(11))
+    np.testing.assert_array_equal(net.positions[0, :3], agents)
+    # the anchors are the first draws of the generator
+    ref = np.random.default_rng(11).uniform(0.0, np.array([100.0, 100.0]), size=(2, 2))
+    np.testing.assert_array_equal(net.positions[0, 3:], ref)
+    assert NetworkSpec.from_dict(spec.to_dict()) == spec
+    assert spec.to_dict()["agents_m"] == agents
+
+
+def test_without_agents_m_the_draws_are_unchanged():
+    spec = NetworkSpec(
+        n_agents=4,
+        region_m=(30.0, 20.0),
+        anchors=3,
+        anchor_layout="uniform",
+        motion=MotionSpec(model="constant_acceleration", n_snapshots=3, initial_accel_std=0.5),
+    )
+    net = make_network(spec, np.random.default_rng(2024))
+    rng = np.random.default_rng(2024)
+    np.testing.assert_array_equal(net.positions[0, :4], rng.uniform(0.0, [30.0, 20.0], (4, 2)))
+    np.testing.assert_array_equal(net.positions[0, 4:], rng.uniform(0.0, [30.0, 20.0], (3, 2)))
+    # snapshot 2 and recipe form as computed by the code before agents_m and waypoints existed
+    before = [
+        [20.28046054519369, 4.45135001222389],
+        [9.001975758667097, 15.903456430135568],
+        [29.610061348084354, 2.6977552416524064],
+        [2.5359842958627956, 3.320792541956584],
+    ]
+    np.testing.assert_allclose(net.positions[-1, :4], before, rtol=1e-13)
+    assert spec.to_dict() == {
+        "n_agents": 4,
+        "dim": 2,
+        "region_m": [30.0, 20.0],
+        "anchors": 3,
+        "anchor_layout": "uniform",
+        "on_isolated": "error",
+        "motion": {
+            "model": "constant_acceleration",
+            "n_snapshots": 3,
+            "dt_s": 0.1,
+            "accel_std": 0.15,
+            "step_std_m": 1.0,
+            "initial_velocity": "gaussian",
+            "initial_speed_std": 1.0,
+            "initial_speed_m_s": 1.0,
+            "initial_accel_std": 0.5,
+        },
+    }
+
+
+@pytest.mark.parametrize(
+    ("agents", "text"),
+    [
+        ([[0.0, 0.0], [1.0, 1.0]], "exactly n_agents = 3"),
+        ([[0.0, 0.0, 0.0]] * 3, "2-D coordinates"),
+        ([[0.0, 0.0], [1.0, math.inf], [2.0, 2.0]], "finite"),
+        ([0.0, 1.0, 2.0], "2-D coordinates"),
+    ],
+)
+def test_agents_m_validation_names_the_key(agents, text):
+    with pytest.raises(ValidationError, match=text) as err:
+        NetworkSpec.from_dict({"n_agents": 3, "agents_m": agents})
+    assert err.value.field == "network.agents_m"

@@ -118,7 +118,8 @@ class ChannelDraw:
     components : (ChannelDraw, ChannelDraw) or None
         Two-way only: the forward and backward one-way draws. The per-link fields other than
         ``los`` and ``nlos_bias_s`` are those of the backward link (whose power reaches the
-        initiator after amplify-and-forward).
+        initiator after amplify-and-forward; its path loss at the backward carrier,
+        :attr:`ChannelSpec.backward_carrier_frequency_hz`).
     """
 
     paths: PathSet
@@ -541,6 +542,12 @@ class ChannelSpec:
         Antenna heights [m] (> 0), default 1.5 m.
     condition : {None, "los", "nlos"}
         Force every link's condition; ``None`` draws it from P_LOS(d).
+    backward_carrier_frequency_hz : float or None
+        Two-way ranging only: carrier frequency [Hz], > 0, of the backward (responder →
+        initiator) transmission, e.g. 5.7e9 with a 5.5e9 forward carrier (DiPNet §V-B uses
+        different frequencies for forward and backward links). It enters the backward
+        draw's path loss, which must be within the scenario's validity range. ``None``
+        (default): the system's carrier, as the forward draw.
     """
 
     scenario: str = "winner2_c2"
@@ -549,6 +556,7 @@ class ChannelSpec:
     h_tx_m: float = 1.5
     h_rx_m: float = 1.5
     condition: str | None = None
+    backward_carrier_frequency_hz: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.scenario, str):
@@ -568,6 +576,19 @@ class ChannelSpec:
         scn = self.load()
         if self.condition is not None:
             _conditions(scn, self.condition, np.ones(1), None)
+        fb = self.backward_carrier_frequency_hz
+        if fb is not None:
+            key = "channel.backward_carrier_frequency_hz"
+            fb = v.positive(key, fb)
+            if self.ranging != "two_way":
+                raise ValidationError(
+                    key, fb, "only used with ranging = 'two_way' (remove it or set that)"
+                )
+            try:
+                scn.check_frequency(fb)
+            except ValidationError as err:
+                raise ValidationError(key, fb, err.allowed) from None
+            object.__setattr__(self, "backward_carrier_frequency_hz", fb)
 
     def load(self) -> Scenario:
         """The validated :class:`Scenario`."""
@@ -595,7 +616,11 @@ class ChannelSpec:
         independently given it. The responder amplifies and forwards what it receives at its
         transmit power, so the forward gains are normalised by ``√P_forward`` and the
         composite ``two_way_composite(forward/√P_f, backward)`` carries exactly the backward
-        received power. Delays are round-trip: ``τ ≥ 2d/c0 + b_f + b_b``.
+        received power. Delays are round-trip: ``τ ≥ 2d/c0 + b_f + b_b``. The forward draw
+        uses the system's carrier, the backward draw ``backward_carrier_frequency_hz`` when
+        given (a copy of ``system`` with that carrier). The random streams are consumed alike
+        either way; only the backward link's frequency-dependent quantities change (its path
+        loss and, for a dual-slope law, the breakpoint distance and hence possibly σ_SF).
         """
         kw = dict(
             system=system,
@@ -608,6 +633,11 @@ class ChannelSpec:
         if self.ranging == "one_way":
             return fwd
         kw["h_tx_m"], kw["h_rx_m"] = self.h_rx_m, self.h_tx_m
+        if self.backward_carrier_frequency_hz is not None:
+            base = OFDMSystem() if system is None else system
+            kw["system"] = dataclasses.replace(
+                base, carrier_frequency_hz=self.backward_carrier_frequency_hz
+            )
         bwd = draw_links(scn, fwd.distances_m, rng, condition=fwd.los, **kw)
         p = fwd.paths
         scale = 1.0 / np.sqrt(fwd.received_power_w)[p.link_index()]

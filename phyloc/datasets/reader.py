@@ -63,7 +63,7 @@ class Snapshot:
     ways : int
         1 (one-way) or 2 (two-way ranging: delays are round trips).
     velocities : [n_nodes, dim] float64 or None
-        [m/s] (CV/CA motion only).
+        [m/s] (CV/CA and waypoint motion only).
     """
 
     realization: int
@@ -375,8 +375,15 @@ class Dataset:
         r = self._realization(realization)
         f = self.file
         names = self.array_names
+        positions = f["nodes/positions"][r]
+        if np.isnan(positions).any():
+            raise sc.DatasetError(
+                f"realization {r} of {self.path} has no ground-truth positions (it was imported "
+                "without `positions`); Dataset.realization and phyloc evaluate need them. "
+                "Dataset.snapshot reads its waveforms"
+            )
         net = Network(
-            positions=f["nodes/positions"][r],
+            positions=positions,
             is_anchor=f["nodes/is_anchor"][r].astype(bool),
             comm_range_m=self.comm_range_m,
             velocities=f["nodes/velocities"][r] if "nodes/velocities" in names else None,

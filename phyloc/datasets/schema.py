@@ -132,7 +132,7 @@ ARRAYS: tuple[ArraySpec, ...] = (
         ("realization", "snapshot", "node", "coordinate"),
         "m/s",
         np.nan,
-        "true node velocities (CV/CA motion only)",
+        "true node velocities (CV/CA and waypoint motion only)",
         when="velocities",
     ),
     ArraySpec(

@@ -3,7 +3,9 @@
 A :class:`NetworkSpec` (recipe section ``[network]``, with ``[network.motion]`` a
 :class:`MotionSpec`) describes a network; :func:`make_network` draws a :class:`Network` from it
 with a ``numpy.random.Generator``. :func:`transition_matrices` exposes the CV/CA state models of
-PF-BP eqs. (1)–(3) for the tracking filters.
+PF-BP eqs. (1)–(3) for the tracking filters. :func:`pentagon` and :func:`waypoint_trajectory`
+(``model = "waypoints"``) describe the DiPNet experiments: stationary agents in a pentagon and
+a rover following a waypoint path.
 
 References
 ----------
@@ -27,6 +29,7 @@ from phyloc.network.deployment import (
     anchor_positions,
     corner_order,
     make_network,
+    pentagon,
 )
 from phyloc.network.motion import (
     INITIAL_VELOCITIES,
@@ -36,6 +39,7 @@ from phyloc.network.motion import (
     noise_gain_matrix,
     simulate_motion,
     transition_matrices,
+    waypoint_trajectory,
 )
 
 __all__ = [
@@ -52,6 +56,8 @@ __all__ = [
     "corner_order",
     "make_network",
     "noise_gain_matrix",
+    "pentagon",
     "simulate_motion",
     "transition_matrices",
+    "waypoint_trajectory",
 ]

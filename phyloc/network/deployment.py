@@ -15,6 +15,26 @@ Conventions (DiPNet §II-A; PF-BP §II):
   :attr:`Network.is_anchor`). Links are sorted lexicographically by ``(u, v)``.
 - **Connectivity**: ``u`` and ``v`` are connected at a snapshot when their distance is
   ``<= comm_range_m`` (or always, for a fully meshed network); links change with motion.
+- **Agents** are uniform in the region at snapshot 0, or placed explicitly (``agents_m``).
+  The DiPNet experiments (§V-B) are written as explicit agents plus a waypoint rover: five
+  stationary agents on a regular pentagon (:func:`pentagon` gives the coordinates to paste
+  into a recipe) and a sixth agent moved by ``[network.motion] model = "waypoints"``::
+
+      [network]
+      n_agents = 6
+      agents_m = [[25.0, 47.5], [17.87, 42.32], [20.59, 33.93], [29.41, 33.93],
+                  [32.13, 42.32], [0.0, 0.0]]   # pentagon(15.0, [25.0, 40.0]) + the rover
+      [network.motion]
+      model = "waypoints"
+      movers = [5]
+      waypoints_m = [[5.0, 5.0], [45.0, 5.0], [45.0, 75.0], [5.0, 75.0]]
+      speeds_m_s = 1.0
+      loop = true
+      corner_radius_m = 3.0
+      n_snapshots = 260
+      dt_s = 1.0
+
+  (the rover's ``agents_m`` entry is a placeholder: its first waypoint overrides it).
 
 References
 ----------
@@ -50,6 +70,40 @@ DEFAULT_SIDE_M = 100.0
 
 class IsolatedNodesWarning(UserWarning):
     """A communication range leaves nodes without neighbours (``on_isolated="warn"``)."""
+
+
+def pentagon(diameter_m: float, center, rotation_deg: float = 90.0) -> np.ndarray:
+    """Vertices of a regular pentagon in the plane (DiPNet §V-B: five stationary agents).
+
+    Parameters
+    ----------
+    diameter_m : float
+        Diameter ``D`` of the circumscribed circle [m], > 0 (every vertex is at ``D/2`` from
+        the centre; the side length is ``D·sin 36°``). DiPNet's "dimension" of the formation
+        (15 m and 30 m) is read as this diameter.
+    center : [2] float64
+        Centre [m].
+    rotation_deg : float, optional
+        Polar angle of the first vertex [deg]; the others follow counter-clockwise every 72°.
+        Default 90 (first vertex straight "up", +y).
+
+    Returns
+    -------
+    vertices : [5, 2] float64
+        ``center + D/2·(cos φ_k, sin φ_k)``, ``φ_k = rotation_deg + 72°·k``, ``k = 0 … 4``.
+
+    Examples
+    --------
+    >>> pentagon(15.0, [25.0, 40.0]).round(2).tolist()[:2]
+    [[25.0, 47.5], [17.87, 42.32]]
+    """
+    d = v.positive("diameter_m", diameter_m)
+    c = v.finite_array("center", center, ndim=1)
+    if c.shape != (2,):
+        raise ValidationError("center", f"shape {c.shape}", "must be a 2-D point [x, y]")
+    rot = v.finite("rotation_deg", rotation_deg)
+    phi = np.deg2rad(rot + 72.0 * np.arange(5))
+    return c[None] + 0.5 * d * np.stack([np.cos(phi), np.sin(phi)], axis=1)
 
 
 def corner_order(dim: int) -> np.ndarray:
@@ -145,7 +199,7 @@ class NetworkSpec:
     ----------
     n_agents : int
         Number of agents, >= 1 (>= 2 without anchors). Their snapshot-0 positions are uniform
-        in the region.
+        in the region unless ``agents_m`` gives them.
     dim : int
         2 or 3. Default 2.
     region_m : tuple of float, optional
@@ -167,6 +221,15 @@ class NetworkSpec:
         (default), emit :class:`IsolatedNodesWarning`, or accept it silently.
     motion : MotionSpec
         Agent motion over the snapshots (anchors are static). Default: static, 1 snapshot.
+        With ``model = "waypoints"`` the movers must be agent indices ``< n_agents`` and the
+        waypoints ``dim``-vectors.
+    agents_m : list of coordinates, optional
+        Explicit snapshot-0 agent positions [m]: ``n_agents`` finite ``dim``-vectors (they may
+        lie outside the region), agent ``i`` at row ``i``. Given, :func:`make_network` draws
+        no agent positions; absent (default), it draws them uniformly as before. A waypoint
+        mover's row is overridden by its first waypoint. There is no pentagon shorthand in
+        recipes (a table cannot say where the other agents go): paste the coordinates of
+        :func:`pentagon`.
 
     Examples
     --------
@@ -188,6 +251,7 @@ class NetworkSpec:
     comm_range_m: float | None = None
     on_isolated: str = "error"
     motion: MotionSpec = field(default_factory=MotionSpec)
+    agents_m: tuple[tuple[float, ...], ...] | None = None
 
     def __post_init__(self):
         s = "network"
@@ -252,6 +316,36 @@ class NetworkSpec:
             object.__setattr__(self, "motion", MotionSpec.from_dict(self.motion))
         elif not isinstance(self.motion, MotionSpec):
             raise ValidationError(f"{s}.motion", self.motion, "must be a MotionSpec or a table")
+        m = self.motion
+        if m.model == "waypoints":
+            if max(m.movers) >= n_agents:
+                raise ValidationError(
+                    f"{s}.motion.movers",
+                    list(m.movers),
+                    f"must be agent indices in [0, {n_agents}) (n_agents = {n_agents})",
+                )
+            wp_dim = len(m.waypoints_m[0])
+            if wp_dim != dim:
+                raise ValidationError(
+                    f"{s}.motion.waypoints_m",
+                    f"{wp_dim}-D points",
+                    f"must be {dim}-D points (network.dim = {dim})",
+                )
+        if self.agents_m is not None:
+            arr = v.finite_array(f"{s}.agents_m", self.agents_m)
+            if arr.ndim != 2 or arr.shape[1] != dim:
+                raise ValidationError(
+                    f"{s}.agents_m",
+                    f"array of shape {arr.shape}",
+                    f"must be a list of {dim}-D coordinates [m], one per agent",
+                )
+            if arr.shape[0] != n_agents:
+                raise ValidationError(
+                    f"{s}.agents_m",
+                    f"{arr.shape[0]} positions",
+                    f"must give exactly n_agents = {n_agents} positions",
+                )
+            object.__setattr__(self, "agents_m", tuple(tuple(float(x) for x in row) for row in arr))
 
     @property
     def n_anchors(self) -> int:
@@ -293,7 +387,7 @@ class NetworkSpec:
                 value = value.to_dict()
             elif f.name == "region_m":
                 value = list(value)
-            elif f.name == "anchors" and not isinstance(value, int):
+            elif f.name in ("anchors", "agents_m") and not isinstance(value, int):
                 value = [list(row) for row in value]
             out[f.name] = value
         return out
@@ -314,7 +408,8 @@ class Network:
     comm_range_m : float, optional
         Communication range [m]; ``None``: fully meshed.
     velocities : [n_snapshots, n_nodes, dim] float64, optional
-        [m/s], when the motion model tracks them (CV, CA); anchors have zero velocity.
+        [m/s], when the motion model tracks them (CV, CA, waypoints); anchors have zero
+        velocity.
     accelerations : [n_snapshots, n_nodes, dim] float64, optional
         [m/s²], CA only.
     dt_s : float, optional
@@ -494,16 +589,18 @@ def _report_isolated(net: Network, spec: NetworkSpec) -> None:
 def make_network(spec: NetworkSpec, rng: np.random.Generator) -> Network:
     """Draw a network from its recipe.
 
-    Agents are uniform in the region at snapshot 0 and move by ``spec.motion``; anchors are
-    static. Nodes are ordered agents first, anchors last.
+    Agents are uniform in the region at snapshot 0 (or at ``spec.agents_m``) and move by
+    ``spec.motion``; anchors are static. Nodes are ordered agents first, anchors last.
 
     Parameters
     ----------
     spec : NetworkSpec
     rng : numpy.random.Generator
-        Draw order: agent positions ``[n_agents, dim]``, then anchor positions (layout
-        ``"uniform"`` only), then the motion (:func:`~phyloc.network.motion.simulate_motion`).
-        The snapshot-0 deployment therefore does not depend on the motion settings.
+        Draw order: agent positions ``[n_agents, dim]`` (not drawn when ``spec.agents_m`` is
+        given), then anchor positions (layout ``"uniform"`` only), then the motion
+        (:func:`~phyloc.network.motion.simulate_motion`; none for static and waypoints).
+        The snapshot-0 deployment therefore does not depend on the motion settings (except
+        that waypoint movers start at their first waypoint).
 
     Returns
     -------
@@ -521,7 +618,10 @@ def make_network(spec: NetworkSpec, rng: np.random.Generator) -> Network:
     if not isinstance(rng, np.random.Generator):
         raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator")
     side = np.asarray(spec.region_m)
-    agents0 = rng.uniform(0.0, side, size=(spec.n_agents, spec.dim))
+    if spec.agents_m is None:
+        agents0 = rng.uniform(0.0, side, size=(spec.n_agents, spec.dim))
+    else:
+        agents0 = np.asarray(spec.agents_m, dtype=np.float64)
     if spec.anchors is None:
         anchors = np.zeros((0, spec.dim))
     elif isinstance(spec.anchors, int):
