@@ -51,6 +51,7 @@ WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel model
 updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
 """
 
+from phyloc.datasets.importer import export_arrays, import_arrays
 from phyloc.datasets.reader import Dataset, Snapshot, info, open, open_dataset, verify
 from phyloc.datasets.schema import (
     SCHEMA_VERSION,
@@ -84,7 +85,9 @@ __all__ = [
     "SchemaVersionError",
     "ShardGenerationError",
     "Snapshot",
+    "export_arrays",
     "generate",
+    "import_arrays",
     "info",
     "open",
     "open_dataset",

@@ -296,26 +296,42 @@ def _measurements(real, tables, rspec, methods):
     return meas, ranges
 
 
+def _method_plan(methods, lspec):
+    """``[(label, registry name, options)]``: ``methods`` is a sequence of registered names
+    (options from ``[localization]``) or a mapping ``label -> (name, options)``."""
+    if isinstance(methods, dict):
+        return [(label, name, opts) for label, (name, opts) in methods.items()]
+    return [(m, m, lspec.options_for(m)) for m in methods]
+
+
 def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particles=()):
     """Ranging and every localization method on every snapshot of a realization.
 
+    ``methods``: registered names, or ``{label: (name, options)}`` (:func:`_method_plan`).
     The randomness of the priors and of each method comes from children of ``seed_seq``
     (spawned after the signals were drawn from the sequence itself). The prior of an
     initialization is drawn from that initialization's stream for each particle count a method
     asks for, so methods with equal ``n_particles`` start from the same particles. Snapshot 0
     starts from the prior; later snapshots predict with the methods' mobility model
     (``process_std_m``, DiPNet §II-C)."""
-    streams = seed_seq.spawn(2 + len(inits) * (1 + len(methods)))
+    plan = _method_plan(methods, lspec)
+    streams = seed_seq.spawn(2 + len(inits) * (1 + len(plan)))
     net = real.network
     tables = [
         correlation_tables(rec, real.symbols, system, beta=rspec.beta, tx_index=lk[:, 1])
         for rec, lk in zip(real.received, real.links, strict=True)
     ]
-    meas, ests = _measurements(real, tables, rspec, methods)
+    meas, ests = _measurements(real, tables, rspec, [name for _, name, _ in plan])
     corr0 = ests["corr"][0]
     out = {
+        # distances of the realization's own links (recorded data need not have every link
+        # the network's range allows; for simulated data they are the same links)
         "link_err_corr": np.concatenate(
-            [e.range_m - net.distances(t) for t, e in enumerate(ests["corr"])]
+            [
+                e.range_m
+                - np.linalg.norm(net.positions[t][lk[:, 0]] - net.positions[t][lk[:, 1]], axis=-1)
+                for t, (e, lk) in enumerate(zip(ests["corr"], real.links, strict=True))
+            ]
         ),
         "link_valid_corr": np.concatenate([e.valid for e in ests["corr"]]),
         "los": np.concatenate([np.asarray(d.los, bool) for d in real.channels]),
@@ -325,19 +341,17 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particl
         prior_seed = streams[s]
         s += 1
         priors = {}
-        for m in methods:
+        for label, name, opts in plan:
             rng_m = np.random.default_rng(streams[s])
             s += 1
-            method = REGISTRY[m]
-            opts = lspec.options_for(m)
             Q = opts.dpf.n_particles if isinstance(opts, DirectOptions) else lspec.dpf.n_particles
             if Q not in priors:
                 rng_p = np.random.default_rng(prior_seed)
                 priors[Q] = _priors(init, net, real.links[0], corr0, lspec, Q, rng_p)
             if keep_particles and isinstance(opts, DirectOptions):
                 opts = dataclasses.replace(opts, keep_particles=tuple(keep_particles))
-            res = method.run(meas, priors[Q], rng_m, opts)
-            out.update(_run_outputs(f"{m}|{init}", res, meas, net.positions))
+            res = REGISTRY[name].run(meas, priors[Q], rng_m, opts)
+            out.update(_run_outputs(f"{label}|{init}", res, meas, net.positions))
     return out
 
 
