@@ -14,6 +14,27 @@ mixture, accumulate). Figures (names are the interface):
 ``dipnet.scaling_exponent_q``             d log(time) / d log(Q) of one likelihood sweep
 ``dipnet.scaling_exponent_links``         d log(time) / d log(|V_u|)   (DiPNet Table I: both 1)
 
+DiPNet Table I, measured (:mod:`benchmarks._table1`; one Numba thread; ``<scheme>`` one of
+``exact``, ``sampled``, ``el``, ``dipnet_published``, ``dipnet``):
+
+``table1.<scheme>.agent_iteration_s.q_<Q>``       s per agent-iteration at |V_u| = 4
+``table1.<scheme>.agent_iteration_s.links_<k>``   s per agent-iteration at |V_u| = k, fixed Q
+``table1.<scheme>.links_sweep_q``                 that fixed Q (``table1.q_sweep_links``: the 4)
+``table1.<scheme>.exponent_q``                    d log(time) / d log(Q)
+``table1.<scheme>.exponent_q_largest``            the same over the three largest Q
+``table1.<scheme>.exponent_links``                d log(time) / d log(|V_u|)
+``table1.<scheme>.fixed_s``, ``.per_link_s``      linear fit ``time = fixed + per_link·|V_u|``
+``table1.<scheme>.floats_per_link_iteration.q_<Q>``  floats one link carries per iteration
+``table1.<scheme>.bytes_per_link_iteration.q_<Q>``   the same in bytes (float64)
+``table1.dipnet.tempering_steps_per_iteration.*``  tempering steps of the safeguarded filter
+``table1.exact.exponent_joint_size``              d log(time) / d log(Q^|M|), |M| = 2 → 3
+``table1.dipnet.table_s_per_link``                β-interpolated IFFT table per link [s]
+
+Exact is the brute-force joint-grid posterior of a 2-agent toy (Q² joint points); sampled and
+el are one weighting sweep of the sample-based exchange (``dpe_sampled``'s likelihood) and of
+DiPNet eq. (25) with the ENV; the dipnet rows are the registered methods' agent-iterations.
+The expected values (DiPNet Table I) are printed beside the measured ones.
+
 The two agent-iteration figures run the registered methods ``METHODS["dipnet"]`` and
 ``METHODS["dipnet_published"]`` (``run(measurements, prior, rng, options)``) on the network's
 correlation tables; ``timing.per_agent_iteration_s`` is the figure.
@@ -42,9 +63,11 @@ from phyloc.phy import OFDMSystem
 from phyloc.phy.correlation import correlation_tables
 
 try:
+    from phyloc.benchmarks import _table1 as table1
     from phyloc.benchmarks._reference import MISSING, naive
     from phyloc.benchmarks._timing import best_seconds
 except ImportError:  # run from the source tree by asv
+    from benchmarks import _table1 as table1
     from benchmarks._reference import MISSING, naive
     from benchmarks._timing import best_seconds
 
@@ -165,6 +188,7 @@ def report(quick: bool = False) -> dict[str, float]:
         p2, _c2, X2, v2 = _state(r2, 1000, g2)
         tl.append(_sweep_rate(l2["env"], X2, p2, v2, repeat)[1] / n)  # per agent
     fig["dipnet.scaling_exponent_links"] = _slope([n - 1 for n in sizes], tl)
+    fig.update(table1.report(quick=quick))
     return fig
 
 
@@ -196,4 +220,5 @@ def summarize(fig: dict) -> str:
         "(DiPNet Table I: 1 and 1)"
     )
     missing = "" if has_twin else f"\nMISSING: {MISSING}"
-    return f"{t1}{missing}\n\n{t2}\n\n{t3}"
+    t4 = f"\n\n{table1.summarize(fig)}" if "table1.q_sweep_links" in fig else ""
+    return f"{t1}{missing}\n\n{t2}\n\n{t3}{t4}"

@@ -13,6 +13,10 @@ Commands:
   HDF5 waveform dataset (sharded, resumable).
 * ``phyloc info OUT.h5 [--verify] [--json PATH]``: summarize a dataset; with ``--verify`` check
   every checksum.
+* ``phyloc import ARRAYS.npz|ARRAYS.h5 -o OUT.h5 [--recipe R.toml] [--force]``: write recorded
+  OFDM snapshots (raw arrays, see ``datasets/README.md``) into a dataset.
+* ``phyloc export OUT.h5 -o ARRAYS.npz|ARRAYS.h5 [--force]``: write a dataset's waveforms and
+  truth as the raw arrays ``phyloc import`` reads.
 * ``phyloc quickstart [--dir DIR]``: generate the small urban quickstart dataset and compare
   DiPNet with two-step methods.
 * ``phyloc channel-stats SCENARIO [--square SIDE_M] [--links N] [--seed S] [--png PATH]
@@ -121,6 +125,36 @@ def build_parser() -> argparse.ArgumentParser:
     i.add_argument("--verify", action="store_true", help="check every shard's checksums")
     _add_json(i)
     i.set_defaults(func=cmd_info)
+
+    im = sub.add_parser(
+        "import", help="write recorded OFDM snapshots (raw arrays) into a phyloc dataset"
+    )
+    im.add_argument(
+        "source",
+        help="an .npz file or a plain HDF5 file of the arrays named in datasets/README.md",
+    )
+    im.add_argument("-o", "--output", required=True, metavar="OUT.h5", help="master HDF5 file")
+    im.add_argument(
+        "--recipe",
+        default=None,
+        metavar="R.toml",
+        help="seed, name, [channel] scenario label, [ranging], [localization] and [experiment] "
+        "for phyloc evaluate (default: the source's recipe text, else defaults)",
+    )
+    im.add_argument(
+        "--force", action="store_true", help="replace an existing output and its shard folder"
+    )
+    im.set_defaults(func=cmd_import)
+
+    ex = sub.add_parser(
+        "export", help="write a dataset's waveforms and truth as the raw arrays import reads"
+    )
+    ex.add_argument("dataset", help="master HDF5 file of a dataset")
+    ex.add_argument(
+        "-o", "--output", required=True, metavar="ARRAYS.npz", help=".npz, .h5 or .hdf5 file"
+    )
+    ex.add_argument("--force", action="store_true", help="replace an existing output")
+    ex.set_defaults(func=cmd_export)
 
     q = sub.add_parser(
         "quickstart",
@@ -281,6 +315,7 @@ EXPERIMENTS = {
     "localization": "phyloc.evaluation.localization_experiment",
     "tracking": "phyloc.evaluation.tracking_experiment",
     "static": "phyloc.evaluation.static_experiment",
+    "direct_tracking": "phyloc.evaluation.direct_tracking_experiment",
 }
 
 
@@ -446,6 +481,29 @@ def cmd_info(args) -> int:
             file=sys.stderr,
         )
         return 1
+    return 0
+
+
+def cmd_import(args) -> int:
+    """``phyloc import``: raw arrays → dataset (see :func:`phyloc.datasets.import_arrays`)."""
+    from phyloc.datasets import import_arrays, info
+
+    out = import_arrays(args.source, args.output, recipe=args.recipe, force=args.force)
+    s = info(out)
+    print(
+        f"imported {args.source}: {s['n_realizations']} realization(s) x {s['n_snapshots']} "
+        f"snapshot(s), {s['n_agents']} agents + {s['n_anchors']} anchors, {s['links']} "
+        f"link waveforms, N = {s['n_subcarriers']} -> {out}"
+    )
+    return 0
+
+
+def cmd_export(args) -> int:
+    """``phyloc export``: dataset → raw arrays (see :func:`phyloc.datasets.export_arrays`)."""
+    from phyloc.datasets import export_arrays
+
+    out = export_arrays(args.dataset, args.output, force=args.force)
+    print(f"exported {args.dataset} -> {out}")
     return 0
 
 

@@ -145,3 +145,42 @@ def sampled_gauss_numpy(
             ell = -0.5 * inv_var[j] * (d - ranges[j]) ** 2
             _add_numpy(out[a], _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]]), gamma)
     return out
+
+
+def sampled_mixture_numpy(
+    particles,
+    offsets,
+    nb_node,
+    pk_off,
+    pk_d,
+    pk_h,
+    pk_c,
+    s2,
+    floor,
+    ways,
+    nb_points,
+    nb_logw,
+    nb_count,
+    gamma,
+):
+    """Twin of ``sampled_mixture_kernel``: each link's message as a [Q_u, Q_v] matrix."""
+    from scipy.special import logsumexp
+
+    n_agents, Q, _ = particles.shape
+    out = np.zeros((n_agents, Q))
+    for a in range(n_agents):
+        for j in range(offsets[a], offsets[a + 1]):
+            v = nb_node[j]
+            pts = nb_points[v, : nb_count[v]]
+            x = ways * np.linalg.norm(particles[a][:, None, :] - pts[None], axis=2)
+            sl = slice(pk_off[j], pk_off[j + 1])
+            var = 1.0 / pk_c[sl] + s2[j]
+            comp = (
+                pk_h[sl]
+                - 0.5 * np.log1p(pk_c[sl] * s2[j])
+                - (x[..., None] - pk_d[sl]) ** 2 / (2 * var)
+            )
+            allc = np.concatenate([np.full((*x.shape, 1), floor[j]), comp], axis=-1)
+            ell = logsumexp(allc, axis=-1)
+            _add_numpy(out[a], _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]]), gamma)
+    return out

@@ -71,6 +71,7 @@ def test_every_shipped_recipe_validates(path):
         "localization": "LocalizationExperimentSpec",
         "tracking": "TrackingExperimentSpec",
         "static": "StaticExperimentSpec",
+        "direct_tracking": "DirectTrackingExperimentSpec",
     }[recipe.kind]
     cls = getattr(mod, spec_cls, None)
     if cls is None:

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from naive_direct import sampled_direct_numpy, sampled_gauss_numpy
+from naive_direct import sampled_direct_numpy, sampled_gauss_numpy, sampled_mixture_numpy
 from test_dpf import ANCHORS, agent_map, awgn_network, gaussian_prior
 
 from phyloc.errors import ValidationError
@@ -21,6 +21,7 @@ from phyloc.localization.direct import run as run_direct
 from phyloc.localization.likelihoods import (
     DirectLikelihood,
     GaussianRangeLikelihood,
+    MarginalDirectLikelihood,
     NodeBeliefs,
     SampledLikelihood,
 )
@@ -54,6 +55,14 @@ def test_sampled_kernels_match_numpy_twins(rng):
     ref = sampled_gauss_numpy(X, offsets, nb, r, iv, pts, lw, cnt, 0.7)
     np.testing.assert_allclose(out, ref, rtol=1e-12)
     assert np.all(np.isfinite(out))
+    n_pk = np.array([1, 3, 0, 2, 4, 1])  # link 2 has no peak: the floor only
+    pk_off = np.concatenate([[0], np.cumsum(n_pk)])
+    pk_d, pk_h = rng.uniform(10, 120, pk_off[-1]), rng.uniform(0, 40, pk_off[-1])
+    pk_c, s2, floor = rng.uniform(0.5, 20, pk_off[-1]), rng.uniform(0, 4, 6), rng.uniform(0, 5, 6)
+    args = (X, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, 2.0, pts, lw, cnt, 0.7)
+    K.sampled_mixture_kernel(*args, out)
+    np.testing.assert_allclose(out, sampled_mixture_numpy(*args), rtol=1e-11)
+    assert np.all(np.isfinite(out))
 
 
 def _two_agents(rng):
@@ -80,6 +89,10 @@ def test_dirac_neighbour_equals_the_anchor_likelihood_exactly(rng):
         (
             DirectLikelihood(table, links, agent_map(is_anchor), 2, use_env=False),
             DirectLikelihood(table, links, agent_map(anchored), 1, use_env=False),
+        ),
+        (
+            MarginalDirectLikelihood(table, links, agent_map(is_anchor), 2),
+            MarginalDirectLikelihood(table, links, agent_map(anchored), 1, use_env=False),
         ),
         (
             GaussianRangeLikelihood(d, var, np.ones(7, bool), links, agent_map(is_anchor), 2),
@@ -189,9 +202,18 @@ def test_sampled_methods_localize_two_cooperating_agents(rng, name):
     assert np.all(err < 0.5), err
 
 
-def test_particle_exchange_needs_a_pointwise_likelihood():
-    with pytest.raises(ValidationError, match="exchange"):
-        DirectOptions(likelihood="marginal", exchange="particles")
+def test_exchange_and_kernel_options_are_checked():
     with pytest.raises(ValidationError, match="exchange"):
         DirectOptions(exchange="beliefs")
+    with pytest.raises(ValidationError, match="sample_kernel"):
+        DirectOptions(exchange="particles", sample_kernel="epanechnikov")
     assert DirectOptions(dpf=DPFOptions(), likelihood="env", exchange="particles")
+
+
+def test_silverman_bandwidth_of_gaussian_particles(rng):
+    """``h² = (4/(n(d + 2)))^{2/(d + 4)}·σ²`` for equally weighted particles of std σ."""
+    X = rng.normal(0.0, 3.0, (1, 4000, 2))
+    b = NodeBeliefs(np.zeros((3, 2)), np.array([1]), X, np.full((1, 4000), -np.log(4000)))
+    expect = (4.0 / (4000 * 4)) ** (2.0 / 6) * 9.0
+    assert b.bandwidth2[1] == pytest.approx(expect, rel=0.05)
+    assert b.bandwidth2[0] == b.bandwidth2[2] == 0.0

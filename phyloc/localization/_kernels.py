@@ -205,6 +205,75 @@ def sampled_gauss_kernel(
             _add_message(out[a], msg, gamma)
 
 
+@njit(cache=True, parallel=True)
+def sampled_mixture_kernel(
+    particles,
+    offsets,
+    nb_node,
+    pk_off,
+    pk_d,
+    pk_h,
+    pk_c,
+    s2,
+    floor,
+    ways,
+    nb_points,
+    nb_logw,
+    nb_count,
+    gamma,
+    out,
+):
+    """``out[a, q] = γ Σ_j log Σ_i exp(lw_{v,i} + ℓ̃_j(ways·‖x_{a,q} − y_{v,i}‖))``.
+
+    The sample-based message with the peak-mixture form of the direct likelihood (DiPNet
+    eq. (22), see ``mixture_loglik_kernel``), each neighbour particle a Gaussian kernel of
+    variance ``s2[j]`` along the link: ``ℓ̃ = log(e^{floor_j} + Σ_p exp(h_p − ½log(1 + c_p s²)
+    − (x − d_p)²/(2(1/c_p + s²))))``.
+    """
+    n_agents, Q, dim = particles.shape
+    q_max = nb_points.shape[1]
+    max_p = 1
+    for j in range(pk_off.size - 1):
+        max_p = max(max_p, pk_off[j + 1] - pk_off[j])
+    for a in prange(n_agents):
+        terms = np.empty(q_max)
+        msg = np.empty(Q)
+        base = np.empty(max_p)
+        half_prec = np.empty(max_p)
+        for q in range(Q):
+            out[a, q] = 0.0
+        for j in range(offsets[a], offsets[a + 1]):
+            v = nb_node[j]
+            n_v = nb_count[v]
+            p0 = pk_off[j]
+            n_p = pk_off[j + 1] - p0
+            for i in range(n_p):
+                ci = pk_c[p0 + i]
+                base[i] = pk_h[p0 + i] - 0.5 * np.log1p(ci * s2[j])
+                half_prec[i] = 0.5 / (1.0 / ci + s2[j])
+            fl = floor[j]
+            for q in range(Q):
+                for i in range(n_v):
+                    acc = 0.0
+                    for k in range(dim):
+                        t = particles[a, q, k] - nb_points[v, i, k]
+                        acc += t * t
+                    x = ways * np.sqrt(acc)
+                    best = fl
+                    for p in range(n_p):
+                        t = x - pk_d[p0 + p]
+                        e = base[p] - half_prec[p] * t * t
+                        if e > best:
+                            best = e
+                    tot = np.exp(fl - best)
+                    for p in range(n_p):
+                        t = x - pk_d[p0 + p]
+                        tot += np.exp(base[p] - half_prec[p] * t * t - best)
+                    terms[i] = nb_logw[v, i] + (best + np.log(tot))
+                msg[q] = _log_sum(terms, n_v)
+            _add_message(out[a], msg, gamma)
+
+
 # ---------------------------------------------------------------------------------------------
 # Marginal (peak-mixture) equivalent likelihood
 # ---------------------------------------------------------------------------------------------

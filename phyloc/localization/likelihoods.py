@@ -43,6 +43,7 @@ from phyloc.analysis.efim import (
 )
 from phyloc.errors import ValidationError
 from phyloc.localization import _kernels as K
+from phyloc.localization import particles as P
 from phyloc.phy.correlation import CorrelationTable, interpolation_order
 from phyloc.phy.system import C0
 
@@ -354,6 +355,10 @@ class MarginalDirectLikelihood:
         return np.maximum(0.0, top - self.outlier_nats)
 
 
+SAMPLE_KERNELS = ("silverman", "none")
+"""Kernels of :class:`SampledLikelihood`."""
+
+
 class NodeBeliefs:
     """Every node's belief as weighted points, padded to one array (the sample-based exchange).
 
@@ -365,6 +370,10 @@ class NodeBeliefs:
     points : [n_nodes, Q_max, dim] float64
     log_weights : [n_nodes, Q_max] float64
     count : [n_nodes] int64
+    bandwidth2 : [n_nodes] float64
+        Squared Gaussian kernel width per node [m²] by Silverman's rule,
+        ``h² = (4/(n_eff(dim + 2)))^{2/(dim + 4)}·tr(C)/dim`` with the belief's weighted
+        covariance ``C`` and effective sample size ``n_eff`` (0 for anchors and single points).
     """
 
     def __init__(self, centers, agent_nodes, particles, log_weights):
@@ -387,6 +396,13 @@ class NodeBeliefs:
         self.points[agent_nodes, :Q] = X
         self.log_weights[agent_nodes, :Q] = lw
         self.count[agent_nodes] = Q
+        self.bandwidth2 = np.zeros(n_nodes)
+        if n_agents and Q > 1:
+            lw_n, _ = P.normalize_log_weights(lw)
+            _, cov = P.weighted_moments(X, lw_n)
+            n_eff = P.effective_sample_size(lw_n)
+            factor = (4.0 / (n_eff * (dim + 2))) ** (2.0 / (dim + 4))
+            self.bandwidth2[agent_nodes] = factor * np.trace(cov, axis1=1, axis2=2) / dim
 
     @classmethod
     def single(cls, centers) -> NodeBeliefs:
@@ -404,26 +420,47 @@ class SampledLikelihood:
     .. math:: \\log m_{v\\to u}(x) = \\log \\sum_i w_v^i\\, p(r_{uv} \\mid \\|x - x_v^i\\|),
 
     with the one-path direct likelihood of DiPNet eq. (22) (``base`` a
-    :class:`DirectLikelihood`: sample-based DPE) or the Gaussian ranging model
+    :class:`MarginalDirectLikelihood`, its peak-mixture form with the outlier floor, or a
+    :class:`DirectLikelihood`, the interpolated table: sample-based DPE) or the Gaussian
+    ranging model
     (``base`` a :class:`GaussianRangeLikelihood`: sample-based SAGE). Anchors are single
     particles, so a Dirac neighbour gives exactly the anchor likelihood. No ENV or ERV: the
     particles carry the neighbour's uncertainty. The cost is ``O(Q_u·Q_v)`` per link
-    (DiPNet Table I, "Sampled SPAWN"), and ``Q_v·(dim + 1)`` floats cross the link per iteration.
+    (DiPNet Table I, "Sampled SPAWN"), and ``Q_v·(dim + 1)`` floats cross the link per iteration
+    (plus the kernel width, if the receiver does not recompute it from them).
+
+    With ``kernel = "silverman"`` each neighbour particle is a Gaussian kernel
+    ``N(y_v^i, h_v² I)`` (:attr:`NodeBeliefs.bandwidth2`, the kernel density estimate of
+    nonparametric BP), folded into the link model along the link: the Gaussian ranging
+    variance becomes ``var + h_v²``, the peak mixture is convolved with ``N(0, h_v²)`` (exact per
+    component), the interpolated table's noise variance becomes the ENV of DiPNet eq. (26)
+    with ``σ²_{v→uv} = h_v²``. Few particles with sharp likelihoods otherwise leave the
+    message a comb of thin rings that the agent's own particles rarely meet. ``"none"`` is the
+    Dirac exchange.
 
     Parameters
     ----------
     base : DirectLikelihood or GaussianRangeLikelihood
         The link model; its ENV/ERV setting is ignored.
+    kernel : {"silverman", "none"}
+        Kernel of the neighbour particles.
     """
 
     kind = "sampled"
     exchange = "particles"
 
-    def __init__(self, base):
-        if not isinstance(base, DirectLikelihood | GaussianRangeLikelihood):
+    def __init__(self, base, kernel="silverman"):
+        if not isinstance(
+            base, DirectLikelihood | MarginalDirectLikelihood | GaussianRangeLikelihood
+        ):
             raise ValidationError(
-                "base", type(base).__name__, "a DirectLikelihood or a GaussianRangeLikelihood"
+                "base",
+                type(base).__name__,
+                "a DirectLikelihood, MarginalDirectLikelihood or GaussianRangeLikelihood",
             )
+        if kernel not in SAMPLE_KERNELS:
+            raise ValidationError("kernel", kernel, "one of " + ", ".join(SAMPLE_KERNELS))
+        self.kernel = kernel
         self.base = base
         self.csr = base.csr
         self.nu = base.nu
@@ -438,13 +475,36 @@ class SampledLikelihood:
         out = np.empty(particles.shape[:2])
         base = self.base
         x = np.ascontiguousarray(particles, dtype=np.float64)
-        if isinstance(base, DirectLikelihood):
+        s2 = b.bandwidth2[base.csr.tx] if self.kernel == "silverman" else np.zeros(base.csr.tx.size)
+        if isinstance(base, MarginalDirectLikelihood):
+            s2 = s2 * base.ways**2  # the table's distance axis is the round trip
+            K.sampled_mixture_kernel(
+                x,
+                base.csr.offsets,
+                base.csr.tx,
+                base.pk_off,
+                base.pk_d,
+                base.pk_h,
+                base.pk_c,
+                s2,
+                base._floors(s2),
+                float(base.ways),
+                b.points,
+                b.log_weights,
+                b.count,
+                float(gamma),
+                out,
+            )
+        elif isinstance(base, DirectLikelihood):
+            env = equivalent_noise_variance(
+                base.noise_var, s2 * base.ways**2, base.alpha_abs2, base.moment2, base.omega
+            )
             K.sampled_direct_kernel(
                 x,
                 base.csr.offsets,
                 base.csr.tx,
                 base.rows,
-                1.0 / (base.noise_var * base.energy),
+                1.0 / (env * base.energy),
                 b.points,
                 b.log_weights,
                 b.count,
@@ -460,7 +520,7 @@ class SampledLikelihood:
                 base.csr.offsets,
                 base.csr.tx,
                 base.ranges,
-                1.0 / base.var,
+                1.0 / (base.var + s2),
                 b.points,
                 b.log_weights,
                 b.count,

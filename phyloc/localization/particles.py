@@ -49,7 +49,8 @@ def normalize_log_weights(lw) -> tuple[np.ndarray, int]:
     """
     lse = logsumexp(lw, axis=1, keepdims=True)
     bad = ~np.isfinite(lse[:, 0])
-    out = lw - lse
+    with np.errstate(invalid="ignore"):  # −inf − (−inf) on rows replaced just below
+        out = lw - lse
     if bad.any():
         out[bad] = -np.log(lw.shape[1])
     out[~np.isfinite(out)] = -np.inf

@@ -18,9 +18,11 @@ package registers the named variants in :data:`phyloc.localization.METHODS`:
                       ``"ranges:sage_los"``
 ``sage_parametric``   the name DiPNet §V-B gives ``sage`` (Gaussian beliefs exchanged):
                       the same method under its paper name
-``dpe_sampled``       sample-based DPE: neighbours exchange particle sets, each message the
-                      direct likelihood of DiPNet eq. (22) through every neighbour particle
-                      (DiPNet §V-B, Table I "Sampled SPAWN"); inputs ``"tables"``
+``dpe_sampled``       sample-based DPE: neighbours exchange particle sets, each message
+                      DiPNet's direct likelihood (DiPNet eq. (22), its peak-mixture form as in
+                      ``dipnet``) through every neighbour particle, each a Gaussian kernel of
+                      Silverman's width (DiPNet §V-B, Table I "Sampled SPAWN"); inputs
+                      ``"tables"``
 ``sage_sampled``      sample-based SAGE: the same exchange with SAGE ranges and their Gaussian
                       variance; inputs ``"ranges:sage"``
 
@@ -110,7 +112,7 @@ _register(
     "tables",
     "sample-based DPE",
     "DPF with neighbours' particle sets through the direct likelihood (DiPNet eq. (22)), O(Q^2)",
-    likelihood="env",
+    likelihood="marginal",
     exchange="particles",
 )
 _register(

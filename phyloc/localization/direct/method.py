@@ -15,8 +15,8 @@ any estimator) is :func:`run` with different :class:`DirectOptions`: the option
                 (:class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood`)
 
 — ``exchange`` chooses what neighbours share: ``"moments"`` (mean and covariance, DiPNet
-Algorithm 1 line 5) or ``"particles"`` (their particle sets: sample-based DPE with ``"env"``,
-sample-based SAGE with ``"gaussian"``, DiPNet §V-B;
+Algorithm 1 line 5) or ``"particles"`` (their particle sets: sample-based DPE with
+``"marginal"`` or ``"env"``, sample-based SAGE with ``"gaussian"``, DiPNet §V-B;
 :class:`~phyloc.localization.likelihoods.SampledLikelihood`) — and ``safeguards`` chooses
 between phyloc's safeguarded filter and DiPNet Algorithm 1 as published. Snapshot 0 runs the
 filter from the prior (:func:`~.dpf.run_dpf`); each later snapshot predicts the particles
@@ -67,6 +67,7 @@ from phyloc.errors import ValidationError
 from phyloc.localization.direct.dpf import DPFOptions, Prior, predict, run_dpf
 from phyloc.localization.direct.measurements import LinkMeasurements
 from phyloc.localization.likelihoods import (
+    SAMPLE_KERNELS,
     DirectLikelihood,
     GaussianRangeLikelihood,
     MarginalDirectLikelihood,
@@ -93,8 +94,12 @@ class DirectOptions:
         The link likelihood (see the module docstring).
     exchange : {"moments", "particles"}
         What a neighbour shares: its mean and covariance (DiPNet Algorithm 1) or its particle
-        set (sample-based exchange, DiPNet §V-B; likelihood ``"env"`` or ``"gaussian"`` only,
-        used without ENV/ERV).
+        set (sample-based exchange, DiPNet §V-B; the likelihood is then used without the
+        neighbour's projected variance).
+    sample_kernel : {"silverman", "none"}
+        With ``exchange = "particles"``: Gaussian kernels of Silverman's width on the
+        neighbour particles, or none (Dirac particles); see
+        :class:`~phyloc.localization.likelihoods.SampledLikelihood`.
     ranges : str
         Range estimator whose ranges the ``"gaussian"`` likelihood reads
         (``measurements.ranges[ranges]``).
@@ -118,6 +123,7 @@ class DirectOptions:
     dpf: DPFOptions = field(default_factory=DPFOptions)
     likelihood: str = "marginal"
     exchange: str = "moments"
+    sample_kernel: str = "silverman"
     ranges: str = "corr"
     outlier_nats: float = 10.0
     safeguards: bool = True
@@ -131,12 +137,7 @@ class DirectOptions:
             raise ValidationError("dpf", type(self.dpf).__name__, "a DPFOptions")
         v.choice("likelihood", self.likelihood, LIKELIHOODS)
         v.choice("exchange", self.exchange, EXCHANGES)
-        if self.exchange == "particles" and self.likelihood == "marginal":
-            raise ValidationError(
-                "exchange",
-                self.exchange,
-                "'moments' with likelihood 'marginal' ('particles' needs 'env' or 'gaussian')",
-            )
+        v.choice("sample_kernel", self.sample_kernel, SAMPLE_KERNELS)
         if not isinstance(self.ranges, str) or not self.ranges:
             raise ValidationError("ranges", self.ranges, "the name of a range estimator")
         if not float(self.outlier_nats) > 0:
@@ -175,7 +176,7 @@ def link_likelihood(measurements: LinkMeasurements, t: int, options: DirectOptio
     links, agent_of, n = m.links[t], m.agent_of_node(), m.n_agents
     if options.exchange == "particles":
         moments = dataclasses.replace(options, exchange="moments")
-        return SampledLikelihood(link_likelihood(m, t, moments))
+        return SampledLikelihood(link_likelihood(m, t, moments), kernel=options.sample_kernel)
     if options.likelihood == "marginal":
         return MarginalDirectLikelihood(
             m.table(t),

@@ -1,0 +1,497 @@
+"""Direct localization over time: the DiPNet rover experiments (DiPNet §V-B, Figs. 6–7).
+
+A recipe of ``kind = "direct_tracking"`` runs one or more *experiments* (``[experiment.runs]``),
+each a network given by ``[network]`` updated by the run's own ``network`` table — in the
+replica ``datasets/dipnet_fig7_rover.toml`` five stationary agents in a pentagon (15 m and
+30 m) and a sixth on a rover following waypoints (:func:`phyloc.network.waypoint_trajectory`)
+— and localizes every snapshot of it with every method of ``experiment.methods`` from the same
+waveforms, truth-free: snapshot 0 from Gaussian priors around a coarse MDS/SMACOF solution,
+every later one from the prediction of the previous belief with the same random-walk mobility
+model for every agent (moving or not, the agents do not know; DiPNet §V-B). The methods are
+those of the direct family (:data:`phyloc.localization.METHODS`), by default the paper's four:
+
+``dipnet``           DiPNet (Gaussian moments exchanged, direct likelihood)
+``dpe_sampled``      sample-based DPE (particle sets exchanged, direct likelihood of DiPNet
+                     eq. (22), O(Q²) per link)
+``sage_parametric``  two-step EL-DPF on SAGE ranges (Gaussian moments exchanged)
+``sage_sampled``     sample-based SAGE (particle sets exchanged, Gaussian SAGE ranges)
+
+``[experiment.variants.<label>]`` adds a method under another label with its own options
+(``method = "<registered name>"`` plus option keys, e.g. ``n_particles = 400``).
+
+Figures, for every method label ``m`` and run ``e`` (errors: the absolute framework distance
+errors of DiPNet eq. (4), pooled over snapshots and realizations)::
+
+    m.e.median_error_m, m.e.p90_error_m, m.e.errors_over_2m_pct, m.e.rmse_m
+    m.e.rmse_slow_m, m.e.rmse_fast_m   RMSE over the snapshots where every agent's true speed is
+                                       at most / above ``experiment.fast_speed_m_s``
+    m.e.agent_snapshot_s               filter time per agent and snapshot
+    m.e.agent_iteration_s              filter time per agent-iteration
+
+Series: ``m.e.rmse_by_snapshot`` (Fig. 7 a, b), ``m.e.error_cdf`` on ``cdf_grid_m``
+(Fig. 7 c, d), ``e.true_track`` and ``m.e.track`` (realization 0, estimates rigidly aligned to
+the truth per snapshot, Fig. 6 c, d), ``m.e.particles`` (realization 0, at snapshot
+``experiment.particles_snapshot``, aligned likewise, Fig. 6 b).
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from phyloc import _validate as v
+from phyloc._validate import check_keys
+from phyloc.channels import ChannelSpec
+from phyloc.config import Recipe
+from phyloc.datasets.simulate import simulate_realization
+from phyloc.errors import ValidationError
+from phyloc.evaluation._common import experiment_from_dict
+from phyloc.evaluation.localization_experiment import LocalizationSpec, _localize
+from phyloc.evaluation.metrics import rigid_align
+from phyloc.evaluation.ranging_experiment import RangingSpec
+from phyloc.localization import METHODS as REGISTRY
+from phyloc.localization import DirectOptions
+from phyloc.network import NetworkSpec
+from phyloc.parallel import run_tasks
+
+PAPER_METHODS = ("dipnet", "dpe_sampled", "sage_parametric", "sage_sampled")
+"""The four methods of DiPNet Figs. 6–7."""
+CDF_GRID_M = np.linspace(0.0, 10.0, 401)
+THRESHOLD_M = 2.0
+"""Errors above this count in ``errors_over_2m_pct``."""
+PARTICLES_SHOWN = 400
+"""Particles per agent kept for Fig. 6 b (drawn by weight)."""
+
+
+def _merge(base: dict, over: dict) -> dict:
+    """``base`` updated by ``over``, subtables merged key by key."""
+    out = dict(base)
+    for k, val in over.items():
+        out[k] = (
+            _merge(out[k], val) if isinstance(val, dict) and isinstance(out.get(k), dict) else val
+        )
+    return out
+
+
+@dataclass(frozen=True)
+class DirectTrackingExperimentSpec:
+    """``[experiment]`` of a ``direct_tracking`` recipe (``[experiment.fast]`` for ``--fast``).
+
+    Parameters
+    ----------
+    runs : dict
+        ``{name: {"network": {...}}}``: each run's network table updates ``[network]``
+        (subtables such as ``motion`` key by key). At least one run.
+    methods : tuple of str
+        Method labels: registered direct-family methods or labels of ``variants``.
+    variants : dict
+        ``{label: {"method": name, <option>: value, ...}}``: a registered method under a new
+        label with options on top of ``[localization]``.
+    realizations : int
+        Independent realizations (network noise and channels) per run.
+    particles_snapshot : int
+        Snapshot whose particles are kept for Fig. 6 b (clipped to the run's last snapshot).
+    fast_speed_m_s : float
+        Snapshots where some agent moves faster than this are the "fast" segment [m/s].
+    max_snapshots : int
+        Keep only the first snapshots of every run (0: all); a ``--fast`` setting.
+    particle_scale : float
+        Multiply every method's ``n_particles`` (keeping the ratios); a ``--fast`` setting.
+    """
+
+    runs: dict = field(default_factory=dict)
+    methods: tuple = PAPER_METHODS
+    variants: dict = field(default_factory=dict)
+    realizations: int = 1
+    particles_snapshot: int = 0
+    fast_speed_m_s: float = 2.0
+    max_snapshots: int = 0
+    particle_scale: float = 1.0
+
+    def __post_init__(self):
+        if not isinstance(self.runs, dict) or not self.runs:
+            raise ValidationError(
+                "experiment.runs", self.runs, "a table of runs, e.g. [experiment.runs.exp1]"
+            )
+        for name, run in self.runs.items():
+            if not isinstance(run, dict):
+                raise ValidationError(
+                    f"experiment.runs.{name}", run, "a table with a network table"
+                )
+            check_keys(run, ["network"], f"experiment.runs.{name}")
+        if not isinstance(self.variants, dict):
+            raise ValidationError("experiment.variants", self.variants, "a table of labels")
+        direct = REGISTRY.family("direct")
+        for label, var in self.variants.items():
+            if not isinstance(var, dict) or var.get("method") not in direct:
+                raise ValidationError(
+                    f"experiment.variants.{label}.method",
+                    var.get("method") if isinstance(var, dict) else var,
+                    f"a direct-family method: {', '.join(direct)}",
+                )
+        methods = tuple(self.methods)
+        if not methods:
+            raise ValidationError("experiment.methods", [], "at least one method")
+        for m in methods:
+            if m not in direct and m not in self.variants:
+                raise ValidationError(
+                    "experiment.methods",
+                    m,
+                    f"a direct-family method ({', '.join(direct)}) or a variant label",
+                )
+        object.__setattr__(self, "methods", methods)
+        v.integer("experiment.realizations", self.realizations, minimum=1)
+        v.integer("experiment.particles_snapshot", self.particles_snapshot, minimum=0)
+        v.positive("experiment.fast_speed_m_s", self.fast_speed_m_s)
+        v.integer("experiment.max_snapshots", self.max_snapshots, minimum=0)
+        v.positive("experiment.particle_scale", self.particle_scale)
+
+    @classmethod
+    def from_dict(cls, d: dict, *, fast: bool = False) -> DirectTrackingExperimentSpec:
+        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
+        return experiment_from_dict(cls, d, fast=fast)
+
+    def networks(self, base: dict) -> dict:
+        """``{run: NetworkSpec}``: ``[network]`` updated by each run (``max_snapshots`` applied)."""
+        out = {}
+        for name, run in self.runs.items():
+            d = _merge(base, run.get("network", {}))
+            if self.max_snapshots:
+                motion = dict(d.get("motion", {}))
+                motion["n_snapshots"] = min(int(motion.get("n_snapshots", 1)), self.max_snapshots)
+                d["motion"] = motion
+            try:
+                out[name] = NetworkSpec.from_dict(d)
+            except ValidationError as exc:
+                raise ValidationError(
+                    f"experiment.runs.{name}: {exc.field}", exc.value, exc.allowed
+                ) from None
+        return out
+
+    def plan(self, lspec: LocalizationSpec) -> dict:
+        """``{label: (registered name, options)}`` with ``particle_scale`` applied."""
+        out = {}
+        for label in self.methods:
+            if label in self.variants:
+                extra = dict(self.variants[label])
+                name = extra.pop("method")
+            else:
+                name, extra = label, {}
+            method = REGISTRY[name]
+            own = {**lspec.options, **lspec.method_options.get(name, {}), **extra}
+            opts = method.make_options(own, f"localization ({label})")
+            if isinstance(opts, DirectOptions) and self.particle_scale != 1.0:
+                q = max(10, round(opts.dpf.n_particles * self.particle_scale))
+                opts = method.make_options({**own, "n_particles": q}, f"localization ({label})")
+            out[label] = (name, opts)
+        return out
+
+
+def _task(payload, seed_seq):
+    """One realization of one run: simulate, localize every snapshot, keep what the figures
+    need (errors per snapshot, realization-0 tracks and particles)."""
+    system, net_spec, chan_spec, rspec, lspec, plan, keep, first = payload
+    real = simulate_realization(system, net_spec, chan_spec, np.random.default_rng(seed_seq))
+    out = _localize(real, system, rspec, lspec, plan, ("truth_free",), seed_seq, (keep,))
+    truth = real.network.positions
+    vel = real.network.velocities
+    speed = np.linalg.norm(vel, axis=2).max(axis=1) if vel is not None else np.zeros(truth.shape[0])
+    res = {"speed": speed}
+    for label in plan:
+        key = f"{label}|truth_free"
+        est = out[key + "|estimates"]
+        res[label] = {
+            "err": out[key + "|err"],
+            "rmse_t": out[key + "|rmse_t"],
+            "agent_snapshot_s": out[key + "|agent_snapshot_s"],
+            "agent_iteration_s": out[key + "|sec_per_agent_it"],
+        }
+        if first:  # realization 0: tracks and particles for Fig. 6
+            res[label]["track"] = _aligned_track(est, truth, real.network.is_anchor)
+            parts = out[key + "|particles_at"].get(keep)
+            if parts is not None:
+                res[label]["particles"] = _aligned_particles(
+                    parts, est[keep], truth[keep], real.network.is_anchor
+                )
+    if first:
+        res["truth"] = truth
+    return res
+
+
+def _full(est_agents, truth_t, is_anchor):
+    full = truth_t.copy()  # anchors (if any) at their known positions
+    full[~is_anchor] = est_agents
+    return full
+
+
+def _aligned_track(est, truth, is_anchor):
+    """Estimates per snapshot, rigidly aligned to the truth (DiPNet §V-B, Fig. 6 c, d)."""
+    return np.stack(
+        [
+            rigid_align(
+                _full(est[t], truth[t], is_anchor), truth[t], is_anchor=_anchors(is_anchor)
+            )[2]
+            for t in range(est.shape[0])
+        ]
+    )
+
+
+def _anchors(is_anchor):
+    return is_anchor if is_anchor.any() else None
+
+
+def _aligned_particles(parts, est_t, truth_t, is_anchor):
+    """Up to :data:`PARTICLES_SHOWN` particles per agent, drawn by weight (a fixed stream: a
+    picture, not an estimate), mapped by the snapshot's alignment of the estimates."""
+    X, lw = parts
+    R, t, _ = rigid_align(_full(est_t, truth_t, is_anchor), truth_t, is_anchor=_anchors(is_anchor))
+    rng = np.random.default_rng(0)
+    n = min(PARTICLES_SHOWN, X.shape[1])
+    out = np.empty((X.shape[0], n, X.shape[2]))
+    for a in range(X.shape[0]):
+        w = np.exp(lw[a] - lw[a].max())
+        idx = rng.choice(X.shape[1], size=n, p=w / w.sum())
+        out[a] = X[a, idx] @ R.T + t
+    return out
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "direct_tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    system = recipe.system
+    exp = DirectTrackingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
+    rspec = recipe.section("ranging", RangingSpec)
+    lspec = recipe.section("localization", LocalizationSpec)
+    chan = recipe.section("channel", ChannelSpec)
+    nets = exp.networks(dict(recipe.section("network")))
+    plan = exp.plan(lspec)
+    payloads, keys = [], []
+    for name, net in nets.items():
+        keep = min(exp.particles_snapshot, net.motion.n_snapshots - 1)
+        for r in range(exp.realizations):
+            payloads.append((system, net, chan, rspec, lspec, plan, keep, r == 0))
+            keys.append((name, r))
+    results = run_tasks(
+        _task,
+        payloads,
+        recipe.seed,
+        workers=workers,
+        scheduler=scheduler,
+        desc="direct tracking",
+        progress=progress,
+    )
+    figures, series = _aggregate(keys, results, exp, list(nets), list(plan))
+    meta = {
+        "recipe": recipe.name,
+        "kind": recipe.kind,
+        "seed": recipe.seed,
+        "fast": fast,
+        "runs": list(nets),
+        "methods": list(plan),
+        "labels": {label: REGISTRY[name].label for label, (name, _) in plan.items()},
+        "n_particles": {
+            label: opts.dpf.n_particles
+            for label, (_, opts) in plan.items()
+            if isinstance(opts, DirectOptions)
+        },
+        "n_snapshots": {name: net.motion.n_snapshots for name, net in nets.items()},
+        "particles_snapshot": {
+            name: min(exp.particles_snapshot, net.motion.n_snapshots - 1)
+            for name, net in nets.items()
+        },
+        "realizations": exp.realizations,
+        "fast_speed_m_s": exp.fast_speed_m_s,
+    }
+    return {"figures": figures, "series": series, "meta": meta}
+
+
+def _rmse(x):
+    return float(math.sqrt(np.mean(np.square(x)))) if np.size(x) else float("nan")
+
+
+def _aggregate(keys, results, exp, runs, labels):
+    figures: dict[str, float] = {}
+    series: dict[str, object] = {"cdf_grid_m": CDF_GRID_M}
+    for run_name in runs:
+        parts = [res for (name, _), res in zip(keys, results, strict=True) if name == run_name]
+        fast_t = parts[0]["speed"] > exp.fast_speed_m_s
+        figures[f"{run_name}.fast_snapshots"] = int(fast_t.sum())
+        if "truth" in parts[0]:
+            series[f"{run_name}.true_track"] = parts[0]["truth"]
+        for m in labels:
+            err = np.concatenate([p[m]["err"] for p in parts])
+            rmse_t = np.array([p[m]["rmse_t"] for p in parts])
+            base = f"{m}.{run_name}"
+            figures[base + ".median_error_m"] = float(np.median(err))
+            figures[base + ".p90_error_m"] = float(np.percentile(err, 90))
+            figures[base + ".errors_over_2m_pct"] = float(100.0 * np.mean(err > THRESHOLD_M))
+            figures[base + ".rmse_m"] = _rmse(err)
+            figures[base + ".rmse_slow_m"] = _rmse(rmse_t[:, ~fast_t])
+            figures[base + ".rmse_fast_m"] = _rmse(rmse_t[:, fast_t])
+            figures[base + ".agent_snapshot_s"] = float(
+                np.mean([p[m]["agent_snapshot_s"] for p in parts])
+            )
+            figures[base + ".agent_iteration_s"] = float(
+                np.mean([p[m]["agent_iteration_s"] for p in parts])
+            )
+            series[base + ".rmse_by_snapshot"] = np.sqrt(np.mean(rmse_t**2, axis=0))
+            series[base + ".error_cdf"] = (
+                np.searchsorted(np.sort(err), CDF_GRID_M, side="right") / err.size
+            )
+            if "track" in parts[0][m]:
+                series[base + ".track"] = parts[0][m]["track"]
+            if "particles" in parts[0][m]:
+                series[base + ".particles"] = parts[0][m]["particles"]
+    return figures, series
+
+
+SUMMARY_HEADERS = [
+    "run",
+    "method",
+    "median [m]",
+    "p90 [m]",
+    "> 2 m [%]",
+    "RMSE slow [m]",
+    "RMSE fast [m]",
+    "ms / agent-snapshot",
+]
+
+
+def summary_rows(results: dict):
+    """Per run and method: error median, 90th percentile, outliers, RMSE, runtime."""
+    f, meta = results["figures"], results["meta"]
+    rows = []
+    for run_name in meta["runs"]:
+        for m in meta["methods"]:
+            b = f"{m}.{run_name}"
+            rows.append(
+                (
+                    run_name,
+                    m,
+                    f[b + ".median_error_m"],
+                    f[b + ".p90_error_m"],
+                    f[b + ".errors_over_2m_pct"],
+                    f[b + ".rmse_slow_m"],
+                    f[b + ".rmse_fast_m"],
+                    1e3 * f[b + ".agent_snapshot_s"],
+                )
+            )
+    return rows
+
+
+def summary_lines(results: dict):
+    """Snapshots, particle counts and the fast segment."""
+    f, meta = results["figures"], results["meta"]
+    runs = ", ".join(
+        f"{r}: {meta['n_snapshots'][r]} snapshots ({f[f'{r}.fast_snapshots']} fast)"
+        for r in meta["runs"]
+    )
+    q = ", ".join(f"{m} {n}" for m, n in meta["n_particles"].items())
+    return [
+        "absolute framework distance errors (DiPNet eq. (4)) pooled over snapshots; truth-free",
+        f"{runs}; fast: some agent faster than {meta['fast_speed_m_s']} m/s",
+        f"particles per agent: {q}",
+    ]
+
+
+def plot(results: dict, path) -> None:
+    """DiPNet Fig. 7 (RMSE per snapshot, error CDFs) and Fig. 6 (trajectories, particles)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    f, ser, meta = results["figures"], results["series"], results["meta"]
+    runs, methods = meta["runs"], meta["methods"]
+    fig = Figure(figsize=(4.8 * (len(runs) + 1), 12.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(3, len(runs) + 1, squeeze=False)
+    color = {m: f"C{i}" for i, m in enumerate(methods)}
+    for j, r in enumerate(runs):
+        ax = axes[0, j]
+        for m in methods:
+            ax.semilogy(np.asarray(ser[f"{m}.{r}.rmse_by_snapshot"]), color=color[m], label=m)
+        ax.set_title(f"{r}: framework RMSE per snapshot")
+        ax.set_xlabel("snapshot")
+        ax.set_ylabel("RMSE [m]")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+        ax = axes[1, j]
+        for m in methods:
+            ax.plot(ser["cdf_grid_m"], ser[f"{m}.{r}.error_cdf"], color=color[m], label=m)
+        ax.set_title(f"{r}: CDF of the absolute framework distance error")
+        ax.set_xlabel("error [m]")
+        ax.set_ylabel("CDF")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    # Fig. 6 c, d: true and estimated trajectories of the first run, two methods
+    r0 = runs[0]
+    shown = [m for m in ("sage_parametric", "dipnet") if m in methods] or methods[:2]
+    for j, m in enumerate(shown[: len(runs) + 1]):
+        ax = axes[2, j]
+        _track_panel(ax, ser, r0, m, color[m])
+    for ax in axes[2, len(shown) :]:
+        ax.set_axis_off()
+    # Fig. 6 b: true trajectories of the last run and DiPNet's particles at one snapshot
+    ax = axes[0, -1]
+    rl = runs[-1]
+    m6 = "dipnet" if "dipnet" in methods else methods[0]
+    truth = ser.get(f"{rl}.true_track")
+    if truth is not None:
+        truth = np.asarray(truth)
+        for u in range(truth.shape[1]):
+            ax.plot(truth[:, u, 0], truth[:, u, 1], "-", color="0.3", lw=0.8)
+        parts = ser.get(f"{m6}.{rl}.particles")
+        snap = meta["particles_snapshot"][rl]
+        if parts is not None:
+            parts = np.asarray(parts)
+            for a in range(parts.shape[0]):
+                ax.plot(parts[a, :, 0], parts[a, :, 1], ".", ms=1.5, alpha=0.4, color=f"C{a}")
+        ax.plot(truth[snap, :, 0], truth[snap, :, 1], "k^", ms=6, label=f"truth, snapshot {snap}")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.legend(fontsize=7)
+    ax.set_title(f"{rl}: true trajectories, {m6} particles")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax = axes[1, -1]
+    x = np.arange(len(methods))
+    width = 0.8 / len(runs)
+    for j, r in enumerate(runs):
+        ax.bar(
+            x + j * width,
+            [f[f"{m}.{r}.errors_over_2m_pct"] for m in methods],
+            width,
+            label=r,
+        )
+    ax.set_xticks(x + 0.4 - width / 2, methods, rotation=20, fontsize=7)
+    ax.set_ylabel("errors > 2 m [%]")
+    ax.set_title("outliers")
+    ax.legend(fontsize=7)
+    fig.suptitle(
+        f"Direct localization over time — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
+    )
+    fig.savefig(path, dpi=100)
+
+
+def _track_panel(ax, ser, run_name, m, color):
+    truth = ser.get(f"{run_name}.true_track")
+    track = ser.get(f"{m}.{run_name}.track")
+    if truth is None or track is None:
+        ax.set_axis_off()
+        return
+    truth, track = np.asarray(truth), np.asarray(track)
+    for u in range(truth.shape[1]):
+        ax.plot(truth[:, u, 0], truth[:, u, 1], "-", color="0.3", lw=1.0)
+        ax.plot(track[:, u, 0], track[:, u, 1], ".", color=color, ms=2)
+    ax.plot([], [], "-", color="0.3", label="truth")
+    ax.plot([], [], ".", color=color, label=f"{m} (aligned)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_title(f"{run_name}: true and estimated trajectories, {m}")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(fontsize=7)
