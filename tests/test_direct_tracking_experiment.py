@@ -135,7 +135,7 @@ def test_tracks_are_rigidly_aligned_estimates(tiny):
     ser = tiny["series"]
     true = np.asarray(ser["a.true_track"])
     for m in METHODS:
-        track = np.asarray(ser["dipnet.a.track".replace("dipnet", m)])
+        track = np.asarray(ser[f"{m}.a.track"])
         per_t = np.asarray(ser[f"{m}.a.rmse_by_snapshot"])
         off = ~np.eye(4, dtype=bool)
         for t in range(true.shape[0]):
