@@ -109,6 +109,16 @@ def _add_message(out_row, msg, gamma):
 
 
 @njit(cache=True)
+def _distance(particles, a, q, points, v, i):
+    """``‖particles[a, q] − points[v, i]‖``."""
+    acc = 0.0
+    for k in range(particles.shape[2]):
+        t = particles[a, q, k] - points[v, i, k]
+        acc += t * t
+    return np.sqrt(acc)
+
+
+@njit(cache=True)
 def _log_sum(terms, n):
     """``log Σ_{i<n} exp(terms[i])`` (−inf when every term is −inf)."""
     top = -np.inf
@@ -146,7 +156,7 @@ def sampled_direct_kernel(
     ``nb_scale = 1/(σ²‖S‖²)`` (no ENV: the particles are the neighbour's uncertainty).
     Cost ``O(Q_u·Q_v)`` per link (DiPNet Table I, "Sampled SPAWN").
     """
-    n_agents, Q, dim = particles.shape
+    n_agents, Q = particles.shape[:2]
     L = values.shape[1]
     q_max = nb_points.shape[1]
     for a in prange(n_agents):
@@ -161,11 +171,8 @@ def sampled_direct_kernel(
             s = nb_scale[j]
             for q in range(Q):
                 for i in range(n_v):
-                    acc = 0.0
-                    for k in range(dim):
-                        t = particles[a, q, k] - nb_points[v, i, k]
-                        acc += t * t
-                    f = _lagrange_eval(values, row, L, np.sqrt(acc) * inv_h, order)
+                    d = _distance(particles, a, q, nb_points, v, i)
+                    f = _lagrange_eval(values, row, L, d * inv_h, order)
                     terms[i] = nb_logw[v, i] + s * (f.real * f.real + f.imag * f.imag)
                 msg[q] = _log_sum(terms, n_v)
             _add_message(out[a], msg, gamma)
@@ -181,7 +188,7 @@ def sampled_gauss_kernel(
     range ``r_j`` with its model variance ``1/inv_var[j]``, the neighbour's belief particles in
     place of its mean and the ERV of DiPNet eq. (18).
     """
-    n_agents, Q, dim = particles.shape
+    n_agents, Q = particles.shape[:2]
     q_max = nb_points.shape[1]
     for a in prange(n_agents):
         terms = np.empty(q_max)
@@ -195,11 +202,7 @@ def sampled_gauss_kernel(
             w = 0.5 * inv_var[j]
             for q in range(Q):
                 for i in range(n_v):
-                    acc = 0.0
-                    for k in range(dim):
-                        t = particles[a, q, k] - nb_points[v, i, k]
-                        acc += t * t
-                    e = np.sqrt(acc) - r
+                    e = _distance(particles, a, q, nb_points, v, i) - r
                     terms[i] = nb_logw[v, i] - w * e * e
                 msg[q] = _log_sum(terms, n_v)
             _add_message(out[a], msg, gamma)
@@ -230,7 +233,7 @@ def sampled_mixture_kernel(
     variance ``s2[j]`` along the link: ``ℓ̃ = log(e^{floor_j} + Σ_p exp(h_p − ½log(1 + c_p s²)
     − (x − d_p)²/(2(1/c_p + s²))))``.
     """
-    n_agents, Q, dim = particles.shape
+    n_agents, Q = particles.shape[:2]
     q_max = nb_points.shape[1]
     max_p = 1
     for j in range(pk_off.size - 1):
@@ -254,11 +257,7 @@ def sampled_mixture_kernel(
             fl = floor[j]
             for q in range(Q):
                 for i in range(n_v):
-                    acc = 0.0
-                    for k in range(dim):
-                        t = particles[a, q, k] - nb_points[v, i, k]
-                        acc += t * t
-                    x = ways * np.sqrt(acc)
+                    x = ways * _distance(particles, a, q, nb_points, v, i)
                     best = fl
                     for p in range(n_p):
                         t = x - pk_d[p0 + p]
