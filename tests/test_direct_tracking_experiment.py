@@ -94,8 +94,11 @@ def test_every_documented_figure_and_series(tiny):
             for what in ("median_error_m", "p90_error_m", "errors_over_2m_pct", "agent_snapshot_s"):
                 assert np.isfinite(f[f"{b}.{what}"]), b + what
             assert np.asarray(ser[b + ".rmse_by_snapshot"]).shape == (T,)
-            assert np.asarray(ser[b + ".track"]).shape == (T, 4, 2)
-            assert np.asarray(ser[b + ".particles"]).shape[0] == 4
+            # pictures: tracks of the first run (Fig. 6 c, d), DiPNet's particles of the last
+            assert (b + ".track" in ser) == (r == "a")
+            assert (b + ".particles" in ser) == (b == "dipnet.b")
+    assert np.asarray(ser["dipnet.a.track"]).shape == (5, 4, 2)
+    assert np.asarray(ser["dipnet.b.particles"]).shape == (4, dt.PARTICLES_SHOWN, 2)
 
 
 def test_statistics_agree_with_each_other(tiny):
@@ -142,9 +145,10 @@ def test_tracks_are_rigidly_aligned_estimates(tiny):
             d_track = np.linalg.norm(track[t][:, None] - track[t][None], axis=-1)
             d_true = np.linalg.norm(true[t][:, None] - true[t][None], axis=-1)
             rms = math.sqrt(np.mean((d_track - d_true)[off] ** 2))
-            assert rms == pytest.approx(per_t[t], rel=1e-9, abs=1e-12)
+            # (tracks are stored rounded to 1 mm: distances move by at most √2 mm)
+            assert rms == pytest.approx(per_t[t], abs=1.5e-3)
             # optimal translation: the aligned centroid is the true centroid
-            np.testing.assert_allclose(track[t].mean(0), true[t].mean(0), atol=1e-9)
+            np.testing.assert_allclose(track[t].mean(0), true[t].mean(0), atol=1e-3)
 
 
 def test_same_seed_same_numbers_on_two_workers(tiny):

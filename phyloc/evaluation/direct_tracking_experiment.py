@@ -29,9 +29,10 @@ errors of DiPNet eq. (4), pooled over snapshots and realizations)::
     m.e.agent_iteration_s              filter time per agent-iteration
 
 Series: ``m.e.rmse_by_snapshot`` (Fig. 7 a, b), ``m.e.error_cdf`` on ``cdf_grid_m``
-(Fig. 7 c, d), ``e.true_track`` and ``m.e.track`` (realization 0, estimates rigidly aligned to
-the truth per snapshot, Fig. 6 c, d), ``m.e.particles`` (realization 0, at snapshot
-``experiment.particles_snapshot``, aligned likewise, Fig. 6 b).
+(Fig. 7 c, d), ``e.true_track`` (realization 0), ``m.e.track`` for the first run (realization
+0, estimates rigidly aligned to the truth per snapshot, Fig. 6 c, d) and ``dipnet.e.particles``
+for the last run (realization 0, :data:`PARTICLES_SHOWN` per agent at snapshot
+``experiment.particles_snapshot``, aligned likewise, Fig. 6 b); pictures are rounded to 1 mm.
 
 References
 ----------
@@ -67,8 +68,10 @@ PAPER_METHODS = ("dipnet", "dpe_sampled", "sage_parametric", "sage_sampled")
 CDF_GRID_M = np.linspace(0.0, 10.0, 401)
 THRESHOLD_M = 2.0
 """Errors above this count in ``errors_over_2m_pct``."""
-PARTICLES_SHOWN = 400
+PARTICLES_SHOWN = 200
 """Particles per agent kept for Fig. 6 b (drawn by weight)."""
+PICTURE_DECIMALS = 3
+"""Tracks and particles are stored rounded to 1 mm (pictures, not estimates)."""
 
 
 def _merge(base: dict, over: dict) -> dict:
@@ -316,6 +319,11 @@ def _rmse(x):
     return float(math.sqrt(np.mean(np.square(x)))) if np.size(x) else float("nan")
 
 
+def _particles_method(labels):
+    """The method whose particles Fig. 6 b shows: DiPNet if it runs, else the first."""
+    return "dipnet" if "dipnet" in labels else labels[0]
+
+
 def _aggregate(keys, results, exp, runs, labels):
     figures: dict[str, float] = {}
     series: dict[str, object] = {"cdf_grid_m": CDF_GRID_M}
@@ -324,7 +332,7 @@ def _aggregate(keys, results, exp, runs, labels):
         fast_t = parts[0]["speed"] > exp.fast_speed_m_s
         figures[f"{run_name}.fast_snapshots"] = int(fast_t.sum())
         if "truth" in parts[0]:
-            series[f"{run_name}.true_track"] = parts[0]["truth"]
+            series[f"{run_name}.true_track"] = np.round(parts[0]["truth"], PICTURE_DECIMALS)
         for m in labels:
             err = np.concatenate([p[m]["err"] for p in parts])
             rmse_t = np.array([p[m]["rmse_t"] for p in parts])
@@ -345,10 +353,15 @@ def _aggregate(keys, results, exp, runs, labels):
             series[base + ".error_cdf"] = (
                 np.searchsorted(np.sort(err), CDF_GRID_M, side="right") / err.size
             )
-            if "track" in parts[0][m]:
-                series[base + ".track"] = parts[0][m]["track"]
-            if "particles" in parts[0][m]:
-                series[base + ".particles"] = parts[0][m]["particles"]
+            # pictures: tracks of the first run (Fig. 6 c, d), particles of the last (Fig. 6 b)
+            if run_name == runs[0] and "track" in parts[0][m]:
+                series[base + ".track"] = np.round(parts[0][m]["track"], PICTURE_DECIMALS)
+            if (
+                run_name == runs[-1]
+                and m == _particles_method(labels)
+                and "particles" in parts[0][m]
+            ):
+                series[base + ".particles"] = np.round(parts[0][m]["particles"], PICTURE_DECIMALS)
     return figures, series
 
 
@@ -440,7 +453,7 @@ def plot(results: dict, path) -> None:
     # Fig. 6 b: true trajectories of the last run and DiPNet's particles at one snapshot
     ax = axes[0, -1]
     rl = runs[-1]
-    m6 = "dipnet" if "dipnet" in methods else methods[0]
+    m6 = _particles_method(methods)
     truth = ser.get(f"{rl}.true_track")
     if truth is not None:
         truth = np.asarray(truth)
@@ -451,8 +464,16 @@ def plot(results: dict, path) -> None:
         if parts is not None:
             parts = np.asarray(parts)
             for a in range(parts.shape[0]):
-                ax.plot(parts[a, :, 0], parts[a, :, 1], ".", ms=1.5, alpha=0.4, color=f"C{a}")
-        ax.plot(truth[snap, :, 0], truth[snap, :, 1], "k^", ms=6, label=f"truth, snapshot {snap}")
+                ax.plot(parts[a, :, 0], parts[a, :, 1], ".", ms=2, color=f"C{a}", zorder=3)
+        ax.plot(
+            truth[snap, :, 0],
+            truth[snap, :, 1],
+            "k^",
+            ms=9,
+            mfc="none",
+            zorder=1,
+            label=f"truth, snapshot {snap}",
+        )
         ax.set_aspect("equal", adjustable="datalim")
         ax.legend(fontsize=7)
     ax.set_title(f"{rl}: true trajectories, {m6} particles")
