@@ -8,13 +8,13 @@ replica ``datasets/dipnet_fig7_rover.toml`` five stationary agents in a pentagon
 waveforms, truth-free: snapshot 0 from Gaussian priors around a coarse MDS/SMACOF solution,
 every later one from the prediction of the previous belief with the same random-walk mobility
 model for every agent (moving or not, the agents do not know; DiPNet §V-B). The methods are
-those of the direct family (:data:`phyloc.localization.METHODS`), by default the paper's four:
+those of the direct family (:data:`phyloc.localization.METHODS`), by default the paper's four::
 
-``dipnet``           DiPNet (Gaussian moments exchanged, direct likelihood)
-``dpe_sampled``      sample-based DPE (particle sets exchanged, direct likelihood of DiPNet
-                     eq. (22), O(Q²) per link)
-``sage_parametric``  two-step EL-DPF on SAGE ranges (Gaussian moments exchanged)
-``sage_sampled``     sample-based SAGE (particle sets exchanged, Gaussian SAGE ranges)
+    ``dipnet``           DiPNet (Gaussian moments exchanged, direct likelihood)
+    ``dpe_sampled``      sample-based DPE (particle sets exchanged, direct likelihood of DiPNet
+                         eq. (22), O(Q²) per link)
+    ``sage_parametric``  two-step EL-DPF on SAGE ranges (Gaussian moments exchanged)
+    ``sage_sampled``     sample-based SAGE (particle sets exchanged, Gaussian SAGE ranges)
 
 ``[experiment.variants.<label>]`` adds a method under another label with its own options
 (``method = "<registered name>"`` plus option keys, e.g. ``n_particles = 400``).
