@@ -18,9 +18,10 @@ result. Schemes (the ``<scheme>`` of the figure names):
 ``exact``             :func:`exact_joint_posterior`: the joint posterior of a 2-agent toy on the
                       Q² joint grid, evaluated exhaustively (one "iteration"; per agent = total/2)
 ``sampled``           one weighting sweep of the sample-based exchange: neighbours' particle
-                      sets through the direct likelihood of DiPNet eq. (22)
-                      (:class:`~phyloc.localization.likelihoods.SampledLikelihood`, the likelihood
-                      of ``dpe_sampled``)
+                      sets through the direct likelihood of DiPNet eq. (22) in its peak-mixture
+                      form (:class:`~phyloc.localization.likelihoods.SampledLikelihood` over
+                      :class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`, the
+                      likelihood of ``dpe_sampled``)
 ``el``                one weighting sweep of the EL, DiPNet eqs. (25)–(26), from the neighbours'
                       moments (:class:`~phyloc.localization.likelihoods.DirectLikelihood`)
 ``dipnet_published``  a full agent-iteration of the registered method (DiPNet Algorithm 1)
@@ -59,7 +60,11 @@ from phyloc.localization import (
     gaussian_log_prior,
     gaussian_priors,
 )
-from phyloc.localization.likelihoods import NodeBeliefs, SampledLikelihood
+from phyloc.localization.likelihoods import (
+    MarginalDirectLikelihood,
+    NodeBeliefs,
+    SampledLikelihood,
+)
 from phyloc.phy import C0, OFDMSystem, PathSet
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
@@ -335,7 +340,7 @@ def time_sampled(net, k, Q, rng, repeat, *, n_rx=2, min_time=None):
     """
     links, table = net.degree(k)
     n = net.n_agents
-    lik = SampledLikelihood(DirectLikelihood(table, links, _agents_of(n, n_rx), n_rx))
+    lik = SampledLikelihood(MarginalDirectLikelihood(table, links, _agents_of(n, n_rx), n_rx))
     Y = _particles(net.positions, Q, rng)
     beliefs = NodeBeliefs(net.positions, np.arange(n), Y, np.full((n, Q), -math.log(Q)))
     X = np.ascontiguousarray(Y[:n_rx])
