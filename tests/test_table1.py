@@ -8,10 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from phyloc.benchmarks import _table1 as T
-from phyloc.benchmarks import bench_dipnet
+from phyloc.cli import _import_benchmark
 from phyloc.errors import ValidationError
 from phyloc.localization.likelihoods import NodeBeliefs
+
+# the installed package (phyloc.benchmarks) or, when phyloc is the working tree, ./benchmarks
+T = _import_benchmark("phyloc.benchmarks._table1")
+bench_dipnet = _import_benchmark("phyloc.benchmarks.bench_dipnet")
 
 
 # -- exact joint-grid posterior ---------------------------------------------------------------
