@@ -46,9 +46,31 @@ def test_wisdom_is_saved_and_a_corrupt_file_is_ignored(tmp_path, monkeypatch):
     assert path.parent == tmp_path
     path.write_text("not json")
     monkeypatch.setitem(phyfft._state, "wisdom_loaded", False)
-    phyfft.BatchFFT(2, 48)  # plans despite the corrupt file, then saves fresh wisdom
+    phyfft.BatchFFT(2, 48)  # the default estimated plan neither reads nor writes wisdom
+    assert path.read_text() == "not json"
+    monkeypatch.setitem(phyfft._state, "planner_effort", "FFTW_MEASURE")
+    phyfft.BatchFFT(2, 48)  # a timed plan: plans despite the corrupt file, saves fresh wisdom
     data = json.loads(path.read_text())
     assert any("fftw" in w for w in data["wisdom"])
+
+
+def test_estimated_plans_give_the_same_bits_in_another_process(tmp_path):
+    """The default plan is chosen without timing: a fresh process computes the same bits."""
+    import subprocess
+    import sys
+
+    code = (
+        "import hashlib, sys, numpy as np; from phyloc.phy import fft as f; "
+        "b = f.BatchFFT(3, 20480); "
+        "b.input[...] = np.random.default_rng(5).standard_normal((3, 20480)) + 0j; "
+        "sys.stdout.write(hashlib.sha256(b.execute().tobytes()).hexdigest())"
+    )
+    env = {**__import__("os").environ, "PHYLOC_CACHE_DIR": str(tmp_path)}
+    runs = {
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env).stdout
+        for _ in range(2)
+    }
+    assert len(runs) == 1 and next(iter(runs))
 
 
 def test_bad_backend_settings():
