@@ -151,29 +151,11 @@ def test_tracks_are_rigidly_aligned_estimates(tiny):
             np.testing.assert_allclose(track[t].mean(0), true[t].mean(0), atol=1e-3)
 
 
-@pytest.fixture(scope="module")
-def two_workers():
-    return dt.run(load_recipe(TINY), workers=2, progress=False)
-
-
-def test_same_seed_same_numbers_on_two_workers(tiny, two_workers):
-    """Equal to 1e-6 on 1 and 2 workers (bit identity: the xfail test below)."""
+def test_same_seed_same_numbers_on_two_workers(tiny):
+    two = dt.run(load_recipe(TINY), workers=2, progress=False)
     for k, v in tiny["figures"].items():
         if not k.endswith("_s"):
-            w = two_workers["figures"][k]
-            assert (math.isnan(v) and math.isnan(w)) or w == pytest.approx(v, rel=1e-6), k
-
-
-@pytest.mark.xfail(
-    strict=False,
-    reason="open defect: in a clean environment the full suite once gave 1e-8 relative "
-    "differences between 1 and 2 workers (FFT threads, FFT planning and Numba threads ruled out)",
-)
-def test_same_seed_same_bits_on_two_workers(tiny, two_workers):
-    for k, v in tiny["figures"].items():
-        if not k.endswith("_s"):
-            w = two_workers["figures"][k]
-            assert w == v or (math.isnan(v) and math.isnan(w)), k
+            assert two["figures"][k] == v or (math.isnan(v) and math.isnan(two["figures"][k])), k
 
 
 def test_replica_recipe_geometry():

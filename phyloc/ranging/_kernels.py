@@ -51,12 +51,14 @@ def _block_phasors(th):
     return orr, oi, math.cos(th * _BLOCK), math.sin(th * _BLOCK)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _correlate(x, n0, w, d):
     """``F(d) = Σ_k x_k e^{−j w n_k d}``, ``n_k = n0 + k`` (one pass, vectorized blocks).
 
-    ``fastmath`` only lets the compiler reassociate the sums (vector lanes); no infinities or
-    NaNs occur for finite input.
+    No ``fastmath``: this helper is called from other kernels, and a reassociating helper rounds
+    differently when compiled into a fresh caller than in the caller's cached copy, so the same
+    run gave different bits in a fresh process and in a Dask worker that loaded the cache
+    (``tests/test_kernel_determinism.py``). The block lanes vectorize without reassociation.
     """
     N = x.size
     th = -w * d
@@ -93,7 +95,7 @@ def _correlate(x, n0, w, d):
     return complex(ar, ai)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _correlate_derivs(x, n0, w, d):
     """``(T0, T1, T2)``, ``T_m = Σ_k n_k^m x_k e^{−j w n_k d}``: ``F = T0``, ``F' = −jw T1``,
     ``F'' = −w² T2``."""
@@ -154,7 +156,7 @@ def _correlate_derivs(x, n0, w, d):
     return complex(t0r, t0i), complex(t1r, t1i), complex(t2r, t2i)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _add_path(x, power, n0, w, d, coef):
     """``x_k += coef · power_k · e^{+j w n_k d}`` in place (one path's contribution to c)."""
     N = x.size
