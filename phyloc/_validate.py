@@ -45,6 +45,13 @@ def integer(name: str, value, *, minimum: int | None = None) -> int:
     return x
 
 
+def boolean(name: str, value) -> bool:
+    """Return ``value`` if it is a bool (``numpy.bool_`` too); 0/1 and strings are refused."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValidationError(name, value, "must be true or false")
+    return bool(value)
+
+
 def finite_array(name: str, a, *, dtype=np.float64, ndim: int | None = None) -> np.ndarray:
     """Return ``a`` as a C-contiguous array of ``dtype``; reject NaN/inf and wrong ``ndim``."""
     try:

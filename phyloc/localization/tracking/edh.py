@@ -104,8 +104,8 @@ def run_edh(
     out_mean = np.empty((K, n_ag, nd))
     out_cov = np.empty((K, n_ag, nd, nd))
     step_s = np.empty(K)
-    anchors = measurements.anchors
     for k in range(K):
+        anchors = measurements.anchors_at(k)
         t0 = time.perf_counter()
         X0 = model.predict_particles(X.reshape(M, n_ag, nd), rng).reshape(M, N)
         P_pred = Ft @ P @ Ft.T + W  # PF-BP eq. (45)

@@ -53,6 +53,7 @@ from phyloc.localization.tracking.range_models import (
     RangeMeasurements,
     agent_measurements,
     check_inputs,
+    check_prior,
     check_run_args,
     flow_links,
     sample_gaussian,
@@ -149,66 +150,106 @@ def run_pfbp(
     """
     t_start = time.perf_counter()
     opt = check_run_args(options, PFBPOptions, rng)
-    mean0, cov0 = check_inputs(measurements, prior)
-    model = measurements.model
-    _dim, nd, n_ag, M, K = (
-        model.dim,
-        model.state_dim,
-        measurements.n_agents,
-        opt.n_particles,
-        measurements.n_steps,
-    )
-    lambdas, steps = _flow.lambda_schedule(opt.n_lambda, opt.lambda_ratio)
-    var = model.sigma_r**2
-    Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc) if opt.regularize else None
-
-    X = sample_gaussian(mean0, cov0, M, rng)  # PF-BP Algorithm 1, lines 1–4
-    P = cov0
+    check_inputs(measurements, prior)
+    tracker = PFBPTracker(measurements.model, prior, rng, opt)
+    nd, n_ag, K = measurements.model.state_dim, measurements.n_agents, measurements.n_steps
     out_mean = np.empty((K, n_ag, nd))
     out_cov = np.empty((K, n_ag, nd, nd))
     step_s = np.empty(K)
     for k in range(K):
         t0 = time.perf_counter()
-        X0 = model.predict_particles(X, rng)  # line 7, PF-BP eq. (1)
-        P_pred = model.predict_cov(P)  # PF-BP eq. (29)
-        chi, P_bel = X0, P_pred
-        for _u in range(opt.n_iterations):  # lines 10–18, all agents in parallel
-            new_chi = np.empty_like(chi)
-            new_P = np.empty_like(P_bel)
-            for i in range(n_ag):
-                new_chi[i], new_P[i] = _agent_update(
-                    i, measurements, k, X0, P_pred, chi, P_bel, opt, lambdas, steps, var, Sr, rng
-                )
-            chi, P_bel = new_chi, new_P
-        X, P = chi, P_bel
-        out_mean[k] = X.mean(axis=1)  # PF-BP eq. (20), line 20
-        out_cov[k] = P
+        out_mean[k], out_cov[k] = tracker.step(measurements.z[k], measurements.anchors_at(k))
         step_s[k] = time.perf_counter() - t0
     timing = Timing(
         time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
     )
+    M = opt.n_particles
     return Result(
         out_mean,
         out_cov,
         timing,
-        particles=X,
+        particles=tracker.particles,
         log_weights=np.full((n_ag, M), -np.log(M)),
         label="pfbp",
     )
 
 
-def _agent_update(i, meas, k, X0, P_pred, chi, P_bel, opt, lambdas, steps, var, Sr, rng):
+class PFBPTracker:
+    """PF-BP one time step at a time: the loop of :func:`run_pfbp` for a closed loop whose
+    next measurements depend on the current beliefs (e.g. anchors steered by
+    :mod:`phyloc.control`). The particles carry over between steps.
+
+    Parameters
+    ----------
+    model : RangeModel
+    prior : GaussianPrior
+        Beliefs at time 0 (the particles are drawn from it, PF-BP Algorithm 1, lines 1–4).
+    rng : numpy.random.Generator
+    options : PFBPOptions, optional
+
+    Attributes
+    ----------
+    particles : [n_agents, M, N_D]
+    cov : [n_agents, N_D, N_D]
+        The UKF covariances (PF-BP eq. (30)).
+
+    Examples
+    --------
+    >>> from phyloc.localization.tracking import GaussianPrior, RangeModel
+    >>> prior = GaussianPrior(np.ones((1, 2)), np.eye(2)[None])
+    >>> t = PFBPTracker(RangeModel("static", 2), prior, np.random.default_rng(0),
+    ...                 PFBPOptions(n_particles=200))
+    >>> mean, cov = t.step(np.array([[np.nan, 1.0, 1.0]]), np.array([[0.0, 1.0], [1.0, 0.0]]))
+    >>> mean.shape, t.particles.shape
+    ((1, 2), (1, 200, 2))
+    """
+
+    def __init__(self, model, prior: GaussianPrior, rng, options: PFBPOptions | None = None):
+        self.options = check_run_args(options, PFBPOptions, rng)
+        mean0, cov0 = check_prior(prior, model)
+        self.model, self.rng = model, rng
+        self._lambdas, self._steps = _flow.lambda_schedule(
+            self.options.n_lambda, self.options.lambda_ratio
+        )
+        self.particles = sample_gaussian(mean0, cov0, self.options.n_particles, rng)  # l. 1–4
+        self.cov = cov0
+
+    def step(self, z_k: np.ndarray, anchors_k: np.ndarray):
+        """Predict and update by one step's ranges ``z_k [n_agents, n_agents + n_anchors]``
+        with anchors at ``anchors_k [n_anchors, dim]``; returns ``(mean, cov)`` (copies):
+        the sample means (PF-BP eq. (20)) and the UKF covariances."""
+        model, opt, rng = self.model, self.options, self.rng
+        var = model.sigma_r**2
+        Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc) if opt.regularize else None
+        X0 = model.predict_particles(self.particles, rng)  # line 7, PF-BP eq. (1)
+        P_pred = model.predict_cov(self.cov)  # PF-BP eq. (29)
+        chi, P_bel = X0, P_pred
+        for _u in range(opt.n_iterations):  # lines 10–18, all agents in parallel
+            new_chi = np.empty_like(chi)
+            new_P = np.empty_like(P_bel)
+            for i in range(chi.shape[0]):
+                new_chi[i], new_P[i] = _agent_update(
+                    i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt,
+                    self._lambdas, self._steps, var, Sr, rng,
+                )  # fmt: skip
+            chi, P_bel = new_chi, new_P
+        self.particles, self.cov = chi, P_bel
+        return chi.mean(axis=1), P_bel.copy()  # PF-BP eq. (20), line 20
+
+
+def _agent_update(
+    i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt, lambdas, steps, var, Sr, rng
+):
     """One belief update of agent ``i`` (PF-BP Algorithm 1, lines 12–16)."""
-    model = meas.model
-    dim, nd, n_ag = model.dim, model.state_dim, meas.n_agents
-    rx, tx, zz, partners = agent_measurements(meas.z[k], i, opt.factors)
+    dim, nd, n_ag = model.dim, model.state_dim, X0.shape[0]
+    rx, tx, zz, partners = agent_measurements(z_k, i, opt.factors)
     if zz.size == 0:
         xi, Pi = X0[i], P_pred[i]
     else:
         local = np.full(n_ag, -1, dtype=np.int64)
         local[i] = 0
         local[partners] = np.arange(1, partners.size + 1)
-        off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, meas.anchors, dim, nd)
+        off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
         beta = np.concatenate([X0[i]] + [chi[j] for j in partners], axis=1)  # PF-BP eq. (21)
         P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # PF-BP eq. (28)
         beta_bar = beta.mean(axis=0)

@@ -60,12 +60,19 @@ class RangeModel:
         σ_a [m/s²], >= 0 (CV/CA). Default 0.15 m/s².
     sigma_r : float
         Range noise standard deviation σ [m], > 0 (PF-BP eq. (8)). Default 0.1 m.
+    planar : bool
+        3-D position at constant height: the velocity (and acceleration) blocks have only the
+        x and y components, e.g. the state ``[x, y, z, ẋ, ẏ]`` of the mobile agents in
+        Zhang, Teague and Meyer's Fisher-information control case study. Requires ``dim = 3``
+        and a CV or CA model. Default False.
 
     Examples
     --------
     >>> m = RangeModel("constant_acceleration", 3)
     >>> m.state_dim, m.matrices()[0].shape
     (9, (9, 9))
+    >>> RangeModel("constant_velocity", 3, dt_s=1.0, planar=True).state_dim
+    5
     """
 
     motion: str = "constant_acceleration"
@@ -73,6 +80,7 @@ class RangeModel:
     dt_s: float = 0.1
     accel_std: float = 0.15
     sigma_r: float = 0.1
+    planar: bool = False
 
     def __post_init__(self):
         v.choice("motion", self.motion, STATE_MODELS)
@@ -85,28 +93,58 @@ class RangeModel:
             self, "accel_std", v.positive("accel_std", self.accel_std, allow_zero=True)
         )
         object.__setattr__(self, "sigma_r", v.positive("sigma_r", self.sigma_r))
+        planar = v.boolean("planar", self.planar)
+        if planar and (dim != 3 or self.motion == "static"):
+            raise ValidationError(
+                "planar", self.planar, "needs dim = 3 and a constant_velocity/acceleration model"
+            )
+        object.__setattr__(self, "planar", planar)
 
     @property
     def order(self) -> int:
-        """1 (static), 2 (CV) or 3 (CA): number of ``dim``-blocks in the state."""
+        """1 (static), 2 (CV) or 3 (CA): number of blocks in the state."""
         return _ORDER[self.motion]
 
     @property
+    def motion_dim(self) -> int:
+        """Components of the velocity/acceleration blocks: ``dim``, or 2 when ``planar``."""
+        return 2 if self.planar else self.dim
+
+    @property
+    def block_sizes(self) -> tuple[int, ...]:
+        """Sizes of the position, velocity, acceleration blocks the model has."""
+        return (self.dim, self.motion_dim, self.motion_dim)[: self.order]
+
+    @property
     def state_dim(self) -> int:
-        """N_D = order · dim."""
-        return self.order * self.dim
+        """N_D = Σ block sizes (``order · dim`` unless ``planar``)."""
+        return sum(self.block_sizes)
+
+    def _kept(self) -> np.ndarray:
+        """Indices of the state within the full ``order · dim`` state (``planar``: no z rates)."""
+        idx = np.arange(self.order * self.dim).reshape(self.order, self.dim)
+        return np.concatenate([idx[0], idx[1:, : self.motion_dim].ravel()])
 
     def matrices(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(F, Q)`` of PF-BP eqs. (2), (48); static: ``(I, 0)``."""
+        """``(F, Q)`` of PF-BP eqs. (2), (48); static: ``(I, 0)``; ``planar``: the rows and
+        columns of the 3-D model without the vertical rates, ``Q = σ_a² G Gᵀ``."""
         if self.motion == "static":
             return np.eye(self.dim), np.zeros((self.dim, self.dim))
-        return transition_matrices(self.motion, self.dim, self.dt_s, self.accel_std)
+        F, Q = transition_matrices(self.motion, self.dim, self.dt_s, self.accel_std)
+        if not self.planar:
+            return F, Q
+        keep = self._kept()
+        G = self.noise_gain()
+        return F[np.ix_(keep, keep)], (self.accel_std**2) * (G @ G.T)
 
     def noise_gain(self) -> np.ndarray:
-        """``G`` of PF-BP eq. (3), ``[N_D, dim]`` (static: zeros)."""
+        """``G`` of PF-BP eq. (3), ``[N_D, motion_dim]`` (static: zeros)."""
         if self.motion == "static":
             return np.zeros((self.dim, self.dim))
-        return noise_gain_matrix(self.motion, self.dim, self.dt_s)
+        G = noise_gain_matrix(self.motion, self.dim, self.dt_s)
+        if not self.planar:
+            return G
+        return G[self._kept()][:, : self.motion_dim]
 
     def regularization_cov(self, std_vel: float = 0.15, std_acc: float = 0.15) -> np.ndarray:
         """The regularization kernel ``Σ_r`` of PF-BP eq. (32): zero on position.
@@ -119,14 +157,14 @@ class RangeModel:
             v.positive("std_vel", std_vel, allow_zero=True) ** 2,
             v.positive("std_acc", std_acc, allow_zero=True) ** 2,
         ][: self.order]
-        return np.diag(np.repeat(diag, self.dim))
+        return np.diag(np.repeat(diag, self.block_sizes))
 
     def predict_particles(self, X: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Draw ``x^{(k)} = F x^{(k−1)} + G u`` for particles ``X [..., N_D]`` (PF-BP eq. (1))."""
         F, _ = self.matrices()
         out = X @ F.T
         if self.motion != "static" and self.accel_std > 0:
-            u = rng.normal(0.0, self.accel_std, size=(*X.shape[:-1], self.dim))
+            u = rng.normal(0.0, self.accel_std, size=(*X.shape[:-1], self.motion_dim))
             out += u @ self.noise_gain().T
         return out
 
@@ -147,8 +185,9 @@ class RangeMeasurements:
     ----------
     model : RangeModel
         State model and range noise σ the trackers assume.
-    anchors : [n_anchors, dim] float64
-        Known anchor positions [m].
+    anchors : [n_anchors, dim] or [K, n_anchors, dim] float64
+        Known anchor positions [m]: fixed, or per time step (anchors that move, e.g. under
+        :mod:`phyloc.control`); :meth:`anchors_at` gives the positions at one step.
     z : [K, n_agents, n_agents + n_anchors] float64
         ``z[k−1, i, j]``: range agent ``i`` measured to node ``j`` at time ``k`` [m]
         (PF-BP eq. (8)); NaN where absent (and on the diagonal). Nodes: agents first, anchors last.
@@ -160,6 +199,9 @@ class RangeMeasurements:
     >>> meas = RangeMeasurements(RangeModel("static", 2), np.zeros((1, 2)), z)
     >>> meas.n_steps, meas.n_agents, meas.n_anchors
     (2, 1, 1)
+    >>> moving = RangeMeasurements(RangeModel("static", 2), [[[0, 0]], [[1, 0]]], z)
+    >>> moving.anchors_at(1)
+    array([[1., 0.]])
     """
 
     model: RangeModel
@@ -170,25 +212,49 @@ class RangeMeasurements:
         if not isinstance(self.model, RangeModel):
             raise ValidationError("model", type(self.model).__name__, "must be a RangeModel")
         dim = self.model.dim
-        anchors = v.finite_array("anchors", np.reshape(self.anchors, (-1, dim)), ndim=2)
-        if np.shape(self.anchors) not in (anchors.shape, (0,)):
-            raise ValidationError(
-                "anchors", f"array of shape {np.shape(self.anchors)}", f"must be (n_anchors, {dim})"
-            )
+        shape = np.shape(self.anchors)
+        if len(shape) == 3:
+            anchors = v.finite_array("anchors", self.anchors, ndim=3)
+            if shape[2] != dim:
+                raise ValidationError(
+                    "anchors", f"array of shape {shape}", f"must be (K, n_anchors, {dim})"
+                )
+        else:
+            anchors = v.finite_array("anchors", np.reshape(self.anchors, (-1, dim)), ndim=2)
+            if shape not in (anchors.shape, (0,)):
+                raise ValidationError(
+                    "anchors", f"array of shape {shape}", f"must be (n_anchors, {dim})"
+                )
+        n_anchors = anchors.shape[-2]
         try:
             z = np.asarray(self.z, dtype=np.float64)
         except (TypeError, ValueError):
             raise ValidationError("z", "<array>", "must convert to float64") from None
-        if z.ndim != 3 or z.shape[2] != z.shape[1] + anchors.shape[0] or z.shape[1] < 1:
+        if z.ndim != 3 or z.shape[2] != z.shape[1] + n_anchors or z.shape[1] < 1:
             raise ValidationError(
                 "z",
                 f"array of shape {z.shape}",
-                f"must be (K, n_agents, n_agents + n_anchors) with n_anchors = {anchors.shape[0]}",
+                f"must be (K, n_agents, n_agents + n_anchors) with n_anchors = {n_anchors}",
+            )
+        if anchors.ndim == 3 and anchors.shape[0] != z.shape[0]:
+            raise ValidationError(
+                "anchors",
+                f"array of shape {anchors.shape}",
+                f"per-step anchors need one row per time step (K = {z.shape[0]})",
             )
         if np.any(np.isinf(z)):
             raise ValidationError("z", "inf", "ranges must be finite or NaN (not measured)")
         object.__setattr__(self, "anchors", anchors)
         object.__setattr__(self, "z", z)
+
+    def anchors_at(self, k: int) -> np.ndarray:
+        """Anchor positions ``[n_anchors, dim]`` at time index ``k`` (0-based, ``z[k]``)."""
+        return self.anchors[k] if self.anchors.ndim == 3 else self.anchors
+
+    def anchor_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Bounding box ``(lo, hi)`` of every anchor position (all steps)."""
+        flat = self.anchors.reshape(-1, self.model.dim)
+        return flat.min(axis=0), flat.max(axis=0)
 
     @property
     def n_agents(self) -> int:
@@ -198,7 +264,7 @@ class RangeMeasurements:
     @property
     def n_anchors(self) -> int:
         """Number of anchors."""
-        return self.anchors.shape[0]
+        return self.anchors.shape[-2]
 
     @property
     def n_steps(self) -> int:
@@ -282,12 +348,12 @@ def paper_prior(
     sp = v.positive("sigma_p", sigma_p)
     sai = v.positive("accel_init_factor", accel_init_factor, allow_zero=True) * m.accel_std
     var = [sp**2, (m.dt_s * sai) ** 2, sai**2][: m.order]
-    diag = np.repeat(var, m.dim)
+    diag = np.repeat(var, m.block_sizes)
     n = measurements.n_agents
     if region_m is None:
         if measurements.n_anchors == 0:
             raise ValidationError("region_m", None, "required when there are no anchors")
-        lo, hi = measurements.anchors.min(axis=0), measurements.anchors.max(axis=0)
+        lo, hi = measurements.anchor_bounds()
     else:
         lo, hi = np.zeros(m.dim), np.asarray(region_m, dtype=float) * np.ones(m.dim)
     mean = np.zeros((n, m.state_dim))
@@ -386,9 +452,17 @@ def check_inputs(measurements, prior):
         raise ValidationError(
             "measurements", type(measurements).__name__, "must be a RangeMeasurements"
         )
+    return check_prior(prior, measurements.model, measurements.n_agents)
+
+
+def check_prior(prior, model, n_agents=None):
+    """Validate a prior for ``model`` (and ``n_agents`` when given); returns float64 copies."""
     if not isinstance(prior, GaussianPrior):
         raise ValidationError("prior", type(prior).__name__, "must be a GaussianPrior")
-    n, nd = measurements.n_agents, measurements.model.state_dim
+    if not isinstance(model, RangeModel):
+        raise ValidationError("model", type(model).__name__, "must be a RangeModel")
+    n = prior.mean.shape[0] if n_agents is None else n_agents
+    nd = model.state_dim
     if prior.mean.shape != (n, nd):
         raise ValidationError(
             "prior.mean", f"array of shape {prior.mean.shape}", f"must be ({n}, {nd})"

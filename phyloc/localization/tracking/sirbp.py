@@ -138,7 +138,7 @@ def run_sirbp(
 
     X = sample_gaussian(mean0, cov0, M, rng)
     if opt.uniform_positions and measurements.n_anchors > 0:
-        lo, hi = measurements.anchors.min(axis=0), measurements.anchors.max(axis=0)
+        lo, hi = measurements.anchor_bounds()
         X[..., :dim] = rng.uniform(lo, hi, size=(n_ag, M, dim))
     out_mean = np.empty((K, n_ag, nd))
     out_cov = np.empty((K, n_ag, nd, nd))
@@ -157,7 +157,7 @@ def run_sirbp(
                 for a, b, zq in zip(rx, tx, zz, strict=True):
                     other = b if a == i else a  # the node that is not i
                     if other >= n_ag:
-                        y = measurements.anchors[other - n_ag][None]  # PF-BP eq. (16)
+                        y = measurements.anchors_at(k)[other - n_ag][None]  # PF-BP eq. (16)
                     else:
                         y = chi_pos[other]  # belief of j at u − 1, PF-BP eqs. (17)–(19)
                     _flow.paired_range_loglik_kernel(pos0[i], y, float(zq), inv_var, lw)

@@ -57,6 +57,7 @@ from phyloc.localization.tracking.range_models import (
     RangeMeasurements,
     agent_measurements,
     check_inputs,
+    check_prior,
     check_run_args,
     flow_links,
 )
@@ -187,33 +188,15 @@ def run_spbp(
     """
     t_start = time.perf_counter()
     opt = check_run_args(options, SPBPOptions, rng, rng_required=False)
-    x, P = check_inputs(measurements, prior)
-    model = measurements.model
-    nd, n_ag, K = model.state_dim, measurements.n_agents, measurements.n_steps
-    F, _ = model.matrices()
-    var = model.sigma_r**2
-    Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc) if opt.regularize else None
-    out_mean = np.empty((K, n_ag, nd))
-    out_cov = np.empty((K, n_ag, nd, nd))
+    check_inputs(measurements, prior)
+    tracker = SPBPTracker(measurements.model, prior, options=opt)
+    K, n_ag = measurements.n_steps, measurements.n_agents
+    out_mean = np.empty((K, n_ag, tracker.model.state_dim))
+    out_cov = np.empty((K, n_ag, tracker.model.state_dim, tracker.model.state_dim))
     step_s = np.empty(K)
     for k in range(K):
         t0 = time.perf_counter()
-        x_pred = x @ F.T  # PF-BP eq. (1)
-        P_pred = model.predict_cov(P)  # PF-BP eq. (29)
-        x_bel, P_bel = x_pred, P_pred
-        for _u in range(opt.n_iterations):  # all agents in parallel
-            new_x = np.empty_like(x_bel)
-            new_P = np.empty_like(P_bel)
-            for i in range(n_ag):
-                new_x[i], new_P[i] = _agent_update(
-                    i, measurements, k, x_pred, P_pred, x_bel, P_bel, opt.factors, var
-                )
-                if Sr is not None:  # PF-BP eq. (33)
-                    new_P[i] += Sr
-            x_bel, P_bel = new_x, new_P
-        x, P = x_bel, P_bel
-        out_mean[k] = x
-        out_cov[k] = P
+        out_mean[k], out_cov[k] = tracker.step(measurements.z[k], measurements.anchors_at(k))
         step_s[k] = time.perf_counter() - t0
     timing = Timing(
         time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
@@ -221,17 +204,76 @@ def run_spbp(
     return Result(out_mean, out_cov, timing, label="spbp")
 
 
-def _agent_update(i, meas, k, x_pred, P_pred, x_bel, P_bel, factors, var):
+class SPBPTracker:
+    """SP-BP one time step at a time: the loop of :func:`run_spbp` for a closed loop whose
+    next measurements depend on the current beliefs (e.g. anchors steered by
+    :mod:`phyloc.control`).
+
+    Parameters
+    ----------
+    model : RangeModel
+    prior : GaussianPrior
+        Beliefs at time 0.
+    rng : numpy.random.Generator, optional
+        Unused (SP-BP is deterministic).
+    options : SPBPOptions, optional
+
+    Attributes
+    ----------
+    mean, cov : [n_agents, N_D], [n_agents, N_D, N_D]
+        The current Gaussian beliefs.
+
+    Examples
+    --------
+    >>> from phyloc.localization.tracking import GaussianPrior, RangeModel
+    >>> t = SPBPTracker(RangeModel("static", 2), GaussianPrior(np.ones((1, 2)), np.eye(2)[None]))
+    >>> z = np.array([[np.nan, 1.0, 1.0]])  # one agent, two anchors
+    >>> mean, cov = t.step(z, np.array([[0.0, 1.0], [1.0, 0.0]]))
+    >>> bool(np.trace(cov[0]) < 2.0)
+    True
+    """
+
+    def __init__(self, model, prior: GaussianPrior, rng=None, options: SPBPOptions | None = None):
+        self.options = check_run_args(options, SPBPOptions, rng, rng_required=False)
+        self.mean, self.cov = check_prior(prior, model)
+        self.model = model
+
+    def step(self, z_k: np.ndarray, anchors_k: np.ndarray):
+        """Predict and update by one step's ranges ``z_k [n_agents, n_agents + n_anchors]``
+        with anchors at ``anchors_k [n_anchors, dim]``; returns ``(mean, cov)`` (copies)."""
+        model, opt = self.model, self.options
+        F, _ = model.matrices()
+        Sr = None
+        if opt.regularize:
+            Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc)
+        var = model.sigma_r**2
+        x_pred = self.mean @ F.T  # PF-BP eq. (1)
+        P_pred = model.predict_cov(self.cov)  # PF-BP eq. (29)
+        x_bel, P_bel = x_pred, P_pred
+        for _u in range(opt.n_iterations):  # all agents in parallel
+            new_x = np.empty_like(x_bel)
+            new_P = np.empty_like(P_bel)
+            for i in range(x_bel.shape[0]):
+                new_x[i], new_P[i] = _agent_update(
+                    i, model, z_k, anchors_k, x_pred, P_pred, x_bel, P_bel, opt.factors, var
+                )
+                if Sr is not None:  # PF-BP eq. (33)
+                    new_P[i] += Sr
+            x_bel, P_bel = new_x, new_P
+        self.mean, self.cov = x_bel, P_bel
+        return x_bel.copy(), P_bel.copy()
+
+
+def _agent_update(i, model, z_k, anchors_k, x_pred, P_pred, x_bel, P_bel, factors, var):
     """One belief update of agent ``i``: unscented product of its prediction and the messages."""
-    model = meas.model
-    dim, nd, n_ag = model.dim, model.state_dim, meas.n_agents
-    rx, tx, zz, partners = agent_measurements(meas.z[k], i, factors)
+    dim, nd, n_ag = model.dim, model.state_dim, x_pred.shape[0]
+    rx, tx, zz, partners = agent_measurements(z_k, i, factors)
     if zz.size == 0:
         return x_pred[i], P_pred[i]
     local = np.full(n_ag, -1, dtype=np.int64)
     local[i] = 0
     local[partners] = np.arange(1, partners.size + 1)
-    off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, meas.anchors, dim, nd)
+    off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
     beta = np.concatenate([x_pred[i]] + [x_bel[j] for j in partners])  # β̄
     P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # as PF-BP eq. (28)
     r_var = np.full(zz.size, var)
