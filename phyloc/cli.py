@@ -316,6 +316,7 @@ EXPERIMENTS = {
     "tracking": "phyloc.evaluation.tracking_experiment",
     "static": "phyloc.evaluation.static_experiment",
     "direct_tracking": "phyloc.evaluation.direct_tracking_experiment",
+    "control": "phyloc.evaluation.control_experiment",
 }
 
 

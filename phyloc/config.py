@@ -13,8 +13,9 @@ Top-level keys:
   ``"localization"`` (direct versus two-step localization, DiPNet Fig. 5), ``"dataset"``
   (waveforms for ``phyloc generate``), ``"tracking"`` (range-level cooperative tracking,
   PF-BP Figs. 4, 6, 7), ``"static"`` (static cooperative localization with polygon-constrained
-  NBP, POA-NBP Figs. 9–12) or ``"direct_tracking"`` (direct localization over the snapshots of
-  moving networks, DiPNet Figs. 6–7);
+  NBP, POA-NBP Figs. 9–12), ``"direct_tracking"`` (direct localization over the snapshots of
+  moving networks, DiPNet Figs. 6–7) or ``"control"`` (mobile anchors steered by Fisher
+  information, :mod:`phyloc.control`);
 * ``name``: a short identifier (results folder name, figure prefixes);
 * ``seed``: the one seed of all randomness (per-task streams come from
   ``SeedSequence.spawn``);
@@ -35,7 +36,7 @@ from phyloc._validate import check_keys
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.phy.system import OFDMSystem
 
-KINDS = ("ranging", "localization", "dataset", "tracking", "static", "direct_tracking")
+KINDS = ("ranging", "localization", "dataset", "tracking", "static", "direct_tracking", "control")
 TOP_LEVEL = ("kind", "name", "seed", "description")
 SECTIONS = ("system", "network", "channel", "ranging", "experiment", "localization", "dataset")
 

@@ -72,6 +72,7 @@ def test_every_shipped_recipe_validates(path):
         "tracking": "TrackingExperimentSpec",
         "static": "StaticExperimentSpec",
         "direct_tracking": "DirectTrackingExperimentSpec",
+        "control": "ControlExperimentSpec",
     }[recipe.kind]
     cls = getattr(mod, spec_cls, None)
     if cls is None:

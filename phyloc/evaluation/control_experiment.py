@@ -1,0 +1,390 @@
+"""Mobile-anchor control: track loss and MSE of FIM-controlled anchors against baselines.
+
+A recipe of ``kind = "control"`` runs ``experiment.trials`` Monte Carlo trials of the closed
+loop of :mod:`phyloc.control.loop` for every policy of ``experiment.policies``: the scenario is
+the ``[network]`` section (:class:`~phyloc.control.ControlScenario`; defaults: the FIM paper's
+case study), the estimation layer ``[localization] method = "spbp" | "pfbp"`` with that
+tracker's options. ``[experiment.variants.<label>]`` adds a policy under its own label
+(``policy = "fim_rh"``, ``horizon = 5``, ``search = "vbest"``, ``beam = 10``, …). Every trial's
+random stream is ``SeedSequence(seed).spawn(trials)[t]`` whatever the worker count or the
+grouping of trials into tasks (``experiment.task_trials``); the policies of a trial share its
+truth and noise draws.
+
+Figures, for every policy label ``p`` (agent tracks pooled over trials and agents; a track is
+*lost* when the final position error exceeds the threshold, and a diverged estimator counts
+as lost)::
+
+    p.track_loss_pct                 at experiment.track_loss_m (5 m by default)
+    p.track_loss_ci_low_pct, p.track_loss_ci_high_pct   Wilson 95 % interval of it
+    p.track_loss_pct_<T>m            at every threshold of experiment.thresholds_m
+    p.k<K>.log10_mse_mean            mean over trials of log₁₀ MSE at the last step K
+                                     (MSE: mean over agents of the squared position error)
+    p.late_log10_mse_mean            the same averaged over the last 10 steps
+    p.decision_s                     mean controller time per decision [s]
+    p.diverged_pct                   trials whose estimator diverged
+
+Series: ``p.log10_mse_by_step`` (FIM Fig. 5), the example trial ``experiment.example_trial``
+(FIM Fig. 4): ``example.truth`` ``[K + 1, n_agents, dim]``, ``example.static``,
+``p.example.mobile`` ``[K + 1, M₁, dim]``, ``p.example.estimates``.
+
+References
+----------
+W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information approach,"
+arXiv:2212.14554, 2022.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from phyloc import _validate as v
+from phyloc.config import Recipe
+from phyloc.control.loop import ControlScenario, draw_trial, make_estimator, run_policy
+from phyloc.control.policies import POLICIES, PolicySpec
+from phyloc.errors import ValidationError
+from phyloc.evaluation._common import experiment_from_dict
+from phyloc.parallel import run_tasks
+
+#: Squared errors of a diverged estimator count as this [m²] in the log-MSE means.
+DIVERGED_M2 = 1e12
+LATE_STEPS = 10
+SUMMARY_HEADERS = [
+    "policy",
+    "track loss %",
+    "95 % CI",
+    "loss % per threshold",
+    "log10 MSE (k=K)",
+    "decision [ms]",
+]
+
+
+@dataclass(frozen=True)
+class ControlExperimentSpec:
+    """``[experiment]`` of a ``control`` recipe (``[experiment.fast]`` for ``--fast``).
+
+    Parameters
+    ----------
+    trials : int
+        Monte Carlo trials (the paper: 10 000).
+    policies : list of str
+        Policy labels: ``static``, ``random``, ``fim_myopic``, ``fim_rh`` or variant labels.
+    variants : dict
+        ``{label: {"policy": name, <PolicySpec key>: value}}``.
+    fim_rh : dict
+        Options of the plain ``fim_rh`` label (``horizon``, ``search``, ``discount``, ``beam``,
+        ``agent_terms``); default ``horizon = 3``, exact search.
+    track_loss_m : float
+        Threshold of ``p.track_loss_pct`` [m].
+    thresholds_m : list of float
+        Thresholds of ``p.track_loss_pct_<T>m`` [m].
+    example_trial : int
+        The trial kept for the example figure.
+    task_trials : int
+        Trials per Dask task (no effect on the numbers).
+    """
+
+    trials: int = 100
+    policies: tuple = POLICIES
+    variants: dict = field(default_factory=dict)
+    fim_rh: dict = field(default_factory=dict)
+    track_loss_m: float = 5.0
+    thresholds_m: tuple = (1.0, 5.0, 20.0)
+    example_trial: int = 0
+    task_trials: int = 20
+
+    def __post_init__(self):
+        v.integer("experiment.trials", self.trials, minimum=1)
+        if not isinstance(self.variants, dict):
+            raise ValidationError("experiment.variants", self.variants, "a table of labels")
+        pols = tuple(self.policies)
+        if not pols:
+            raise ValidationError("experiment.policies", [], "at least one policy")
+        for p in pols:
+            if p not in POLICIES and p not in self.variants:
+                raise ValidationError(
+                    "experiment.policies", p, f"one of {', '.join(POLICIES)} or a variant label"
+                )
+        if len(set(pols)) != len(pols):
+            raise ValidationError("experiment.policies", list(pols), "labels must be unique")
+        object.__setattr__(self, "policies", pols)
+        v.positive("experiment.track_loss_m", self.track_loss_m)
+        th = tuple(v.positive("experiment.thresholds_m", t) for t in self.thresholds_m)
+        if not th:
+            raise ValidationError("experiment.thresholds_m", [], "at least one threshold [m]")
+        object.__setattr__(self, "thresholds_m", th)
+        v.integer("experiment.example_trial", self.example_trial, minimum=0)
+        v.integer("experiment.task_trials", self.task_trials, minimum=1)
+        self.plan()  # every policy table is checked before any work
+
+    @classmethod
+    def from_dict(cls, d: dict, *, fast: bool = False) -> ControlExperimentSpec:
+        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
+        d = {k: tuple(x) if isinstance(x, list) else x for k, x in d.items()}
+        return experiment_from_dict(cls, d, fast=fast)
+
+    def plan(self) -> dict:
+        """``{label: PolicySpec}``."""
+        out = {}
+        for label in self.policies:
+            if label in self.variants:
+                var = self.variants[label]
+                if not isinstance(var, dict) or var.get("policy") not in POLICIES:
+                    raise ValidationError(
+                        f"experiment.variants.{label}.policy",
+                        var.get("policy") if isinstance(var, dict) else var,
+                        f"one of {', '.join(POLICIES)}",
+                    )
+                out[label] = PolicySpec.from_dict(var, f"experiment.variants.{label}")
+            elif label == "fim_rh":
+                out[label] = PolicySpec.from_dict(
+                    {"policy": "fim_rh", **self.fim_rh}, "experiment.fim_rh"
+                )
+            else:
+                out[label] = PolicySpec(label)
+        return out
+
+
+def _estimator(recipe: Recipe):
+    loc = dict(recipe.section("localization"))
+    name = loc.pop("method", "spbp")
+    return name, loc
+
+
+def _task(payload, _seed_seq):
+    """Run a block of trials; each trial's stream comes from its index, not from the task."""
+    scenario, plan, est_name, est_opts, seed, trials, example = payload
+    estimator = make_estimator(est_name, est_opts)
+    out = {label: {"err2": [], "decision_s": []} for label in plan}
+    ex = None
+    for t in trials:
+        draws_ss, policy_ss, est_ss = np.random.SeedSequence(seed, spawn_key=(t,)).spawn(3)
+        draws = draw_trial(scenario, np.random.default_rng(draws_ss))
+        keep = t == example
+        if keep:
+            ex = {"truth": draws.truth[:, :, : scenario.dim], "static": draws.static, "by": {}}
+        for label, spec in plan.items():
+            r = run_policy(
+                scenario,
+                draws,
+                spec,
+                estimator,
+                np.random.default_rng(policy_ss),
+                np.random.default_rng(est_ss),
+                keep=keep,
+            )
+            out[label]["err2"].append(r["err2"])
+            out[label]["decision_s"].append(r["decision_s"])
+            if keep:
+                ex["by"][label] = {"mobile": r["mobile"], "estimates": r["estimates"]}
+    return out, ex
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "control"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    exp = ControlExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
+    scenario = ControlScenario.from_dict(dict(recipe.section("network")))
+    est_name, est_opts = _estimator(recipe)
+    make_estimator(est_name, est_opts)  # checked before any work
+    plan = exp.plan()
+    blocks = [
+        list(range(s, min(s + exp.task_trials, exp.trials)))
+        for s in range(0, exp.trials, exp.task_trials)
+    ]
+    example = min(exp.example_trial, exp.trials - 1)
+    payloads = [(scenario, plan, est_name, est_opts, recipe.seed, b, example) for b in blocks]
+    results = run_tasks(
+        _task,
+        payloads,
+        recipe.seed,
+        workers=workers,
+        scheduler=scheduler,
+        desc="control trials",
+        progress=progress,
+    )
+    figures, series = _aggregate(results, exp, plan, scenario)
+    meta = {
+        "recipe": recipe.name,
+        "kind": recipe.kind,
+        "seed": recipe.seed,
+        "fast": fast,
+        "trials": exp.trials,
+        "policies": list(plan),
+        "policy_specs": {
+            k: {"policy": p.policy, "horizon": p.horizon, "search": p.search, "beam": p.beam}
+            for k, p in plan.items()
+        },
+        "estimator": est_name,
+        "steps": scenario.steps,
+        "agents": scenario.agents,
+        "mobile_anchors": scenario.mobile_anchors,
+        "static_anchors": scenario.static_anchors,
+        "controls": int(scenario.controls.shape[0]),
+        "track_loss_m": exp.track_loss_m,
+        "thresholds_m": list(exp.thresholds_m),
+        "example_trial": example,
+    }
+    return {"figures": figures, "series": series, "meta": meta}
+
+
+def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval of a proportion ``k/n`` (95 % by default), as fractions.
+
+    Examples
+    --------
+    >>> lo, hi = wilson(0, 100)
+    >>> lo, round(hi, 4)
+    (0.0, 0.037)
+    """
+    if n <= 0:
+        return float("nan"), float("nan")
+    p = k / n
+    den = 1.0 + z * z / n
+    c = (p + z * z / (2 * n)) / den
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return max(0.0, c - h), min(1.0, c + h)
+
+
+def _fmt_m(t: float) -> str:
+    return f"{t:g}".replace(".", "p")
+
+
+def _aggregate(results, exp, plan, scenario):
+    figures: dict[str, float] = {}
+    series: dict[str, object] = {}
+    K = scenario.steps
+    example = None
+    for _, ex in results:
+        if ex is not None:
+            example = ex
+    for label in plan:
+        err2 = np.concatenate([np.asarray(r[label]["err2"]) for r, _ in results])  # [n, K, A]
+        dec = np.concatenate([np.asarray(r[label]["decision_s"]) for r, _ in results])
+        final = err2[:, -1, :]
+        diverged = ~np.all(np.isfinite(err2), axis=(1, 2))
+        n_tracks = final.size
+
+        def loss(th, final=final, n_tracks=n_tracks):
+            lost = int(np.sum(~(final <= th * th)))
+            return lost, 100.0 * lost / n_tracks
+
+        lost, pct = loss(exp.track_loss_m)
+        lo, hi = wilson(lost, n_tracks)
+        figures[f"{label}.track_loss_pct"] = pct
+        figures[f"{label}.track_loss_ci_low_pct"] = 100.0 * lo
+        figures[f"{label}.track_loss_ci_high_pct"] = 100.0 * hi
+        for th in exp.thresholds_m:
+            figures[f"{label}.track_loss_pct_{_fmt_m(th)}m"] = loss(th)[1]
+        mse = np.mean(np.where(np.isfinite(err2), err2, DIVERGED_M2), axis=2)  # [n, K]
+        log_mse = np.log10(np.maximum(mse, 1e-300))
+        by_step = log_mse.mean(axis=0)
+        figures[f"{label}.k{K}.log10_mse_mean"] = float(by_step[-1])
+        figures[f"{label}.late_log10_mse_mean"] = float(by_step[-LATE_STEPS:].mean())
+        figures[f"{label}.decision_s"] = float(dec.mean())
+        figures[f"{label}.diverged_pct"] = 100.0 * float(diverged.mean())
+        series[f"{label}.log10_mse_by_step"] = by_step
+        if example is not None:
+            series[f"{label}.example.mobile"] = np.round(example["by"][label]["mobile"], 3)
+            series[f"{label}.example.estimates"] = np.round(example["by"][label]["estimates"], 3)
+    if example is not None:
+        series["example.truth"] = np.round(example["truth"], 3)
+        series["example.static"] = np.round(example["static"], 3)
+    return figures, series
+
+
+def summary_rows(results: dict):
+    """Per policy: track loss with its interval, per threshold, final log-MSE, decision time."""
+    f, meta = results["figures"], results["meta"]
+    K = meta["steps"]
+    rows = []
+    for p in meta["policies"]:
+        per = " / ".join(
+            f"{f[f'{p}.track_loss_pct_{_fmt_m(t)}m']:.2f}" for t in meta["thresholds_m"]
+        )
+        rows.append(
+            (
+                p,
+                f[f"{p}.track_loss_pct"],
+                f"[{f[f'{p}.track_loss_ci_low_pct']:.2f}, {f[f'{p}.track_loss_ci_high_pct']:.2f}]",
+                per,
+                f[f"{p}.k{K}.log10_mse_mean"],
+                1e3 * f[f"{p}.decision_s"],
+            )
+        )
+    return rows
+
+
+def summary_lines(results: dict):
+    """Trials, thresholds and the scenario."""
+    meta = results["meta"]
+    th = ", ".join(f"{t:g}" for t in meta["thresholds_m"])
+    return [
+        f"{meta['trials']} trials, {meta['steps']} steps; {meta['agents']} agent(s), "
+        f"{meta['mobile_anchors']} mobile + {meta['static_anchors']} static anchor(s), "
+        f"|U| = {meta['controls']}, estimator {meta['estimator']}",
+        f"track lost: final position error > {meta['track_loss_m']:g} m "
+        f"(per-threshold column: {th} m)",
+    ]
+
+
+def plot(results: dict, path) -> None:
+    """FIM Fig. 5 (mean log₁₀ MSE per step), Fig. 4 (example trial in 3-D), track loss."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    f, ser, meta = results["figures"], results["series"], results["meta"]
+    pols = meta["policies"]
+    fig = Figure(figsize=(16.0, 5.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    color = {p: f"C{i}" for i, p in enumerate(pols)}
+    ax = fig.add_subplot(1, 3, 1)
+    for p in pols:
+        y = np.asarray(ser[f"{p}.log10_mse_by_step"])
+        ax.plot(np.arange(1, y.size + 1), y, color=color[p], label=p)
+    ax.set_xlabel("time step k")
+    ax.set_ylabel("mean of log10 MSE [m²]")
+    ax.set_title(f"agent position MSE ({meta['trials']} trials)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    truth = ser.get("example.truth")
+    ax = fig.add_subplot(
+        1, 3, 2, projection="3d" if truth is not None and np.asarray(truth).shape[-1] == 3 else None
+    )
+    if truth is not None:
+        truth = np.asarray(truth)
+        three = truth.shape[-1] == 3
+
+        def line(a, *args, **kw):
+            ax.plot(*[a[..., d] for d in range(3 if three else 2)], *args, **kw)
+
+        for i in range(truth.shape[1]):
+            line(truth[:, i], "-", color="k", lw=1.5, label="agent (truth)" if i == 0 else None)
+        st = np.asarray(ser["example.static"])
+        if st.size:
+            line(st, "ks", ms=7, label="static anchor")
+        for p in pols:
+            mob = np.asarray(ser[f"{p}.example.mobile"])
+            for j in range(mob.shape[1]):
+                line(mob[:, j], "-", color=color[p], lw=1.0, label=p if j == 0 else None)
+                line(mob[:1, j], "o", color=color[p], ms=4)
+        ax.set_title(f"example trial {meta['example_trial']}: mobile anchors' paths")
+        ax.legend(fontsize=7)
+    ax = fig.add_subplot(1, 3, 3)
+    ths = meta["thresholds_m"]
+    x = np.arange(len(pols))
+    width = 0.8 / len(ths)
+    for i, t in enumerate(ths):
+        ax.bar(
+            x + i * width,
+            [f[f"{p}.track_loss_pct_{_fmt_m(t)}m"] for p in pols],
+            width,
+            label=f"> {t:g} m",
+        )
+    ax.set_xticks(x + 0.4 - width / 2, pols, rotation=20, fontsize=8)
+    ax.set_ylabel("tracks lost [%]")
+    ax.set_title("track loss (final position error)")
+    ax.legend(fontsize=8)
+    fig.suptitle(f"Mobile-anchor control — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}")
+    fig.savefig(path, dpi=100)
