@@ -20,6 +20,7 @@ from phyloc.control import (
     make_estimator,
     position_cost,
     range_information,
+    realized_network,
     run_policy,
     search,
 )
@@ -275,6 +276,12 @@ def test_trial_draws_are_shared_and_anchors_follow_the_controls():
     np.testing.assert_allclose(steps, sc.speed_m_s * sc.dt_s)
     assert np.all(out["static"]["mobile"] == draws.mobile0)
     assert np.all(np.isfinite(out["fim_myopic"]["err2"]))
+    net = realized_network(sc, draws, mob)
+    np.testing.assert_array_equal(net.positions[:, sc.agents : sc.agents + 1], mob)
+    np.testing.assert_array_equal(net.positions[:, : sc.agents], draws.truth[:, :, :3])
+    assert net.is_anchor.sum() == 2 and net.n_snapshots == sc.steps + 1
+    with pytest.raises(ValidationError, match="anchors must be static"):
+        type(net)(net.positions, net.is_anchor)
 
 
 def _tiny_recipe(tmp_path, extra=""):

@@ -27,7 +27,13 @@ Examples
 """
 
 from phyloc.control.fim import control_set, position_cost, range_information, update_covariance
-from phyloc.control.loop import ControlScenario, draw_trial, make_estimator, run_policy
+from phyloc.control.loop import (
+    ControlScenario,
+    draw_trial,
+    make_estimator,
+    realized_network,
+    run_policy,
+)
 from phyloc.control.policies import POLICIES, PolicySpec, decide
 from phyloc.control.search import SEARCHES, ControlProblem, joint_controls, search
 
@@ -44,6 +50,7 @@ __all__ = [
     "make_estimator",
     "position_cost",
     "range_information",
+    "realized_network",
     "run_policy",
     "search",
     "update_covariance",

@@ -38,6 +38,7 @@ from phyloc.errors import ValidationError
 from phyloc.localization.tracking import GaussianPrior, PFBPOptions, RangeModel, SPBPOptions
 from phyloc.localization.tracking.pfbp import PFBPTracker
 from phyloc.localization.tracking.spbp import SPBPTracker
+from phyloc.network import Network
 
 ESTIMATORS = {"spbp": (SPBPTracker, SPBPOptions), "pfbp": (PFBPTracker, PFBPOptions)}
 """Estimation layers: name → (step-by-step tracker, options)."""
@@ -287,3 +288,31 @@ def run_policy(sc, draws, spec: PolicySpec, estimator, policy_rng, estimator_rng
         out["estimates"] = est
         out["mobile"] = np.stack(path)
     return out
+
+
+def realized_network(sc: ControlScenario, draws: TrialDraws, mobile: np.ndarray) -> Network:
+    """The trial as a :class:`~phyloc.network.Network`: the agents' true positions and the
+    anchors' positions at every step ``0 … K`` (the mobile ones from the control loop,
+    ``mobile [K + 1, M₁, dim]`` as returned by :func:`run_policy` with ``keep``), anchors last.
+
+    Examples
+    --------
+    >>> sc = ControlScenario(steps=3)
+    >>> draws = draw_trial(sc, np.random.default_rng(0))
+    >>> r = run_policy(sc, draws, PolicySpec("random"), make_estimator("spbp", {}),
+    ...                np.random.default_rng(1), None, keep=True)
+    >>> net = realized_network(sc, draws, r["mobile"])
+    >>> net.positions.shape, bool(net.anchors_move)
+    ((4, 3, 3), True)
+    """
+    K = sc.steps
+    mobile = np.asarray(mobile, dtype=float)
+    if mobile.shape != (K + 1, sc.mobile_anchors, sc.dim):
+        raise ValidationError(
+            "mobile", f"array of shape {mobile.shape}", f"({K + 1}, {sc.mobile_anchors}, {sc.dim})"
+        )
+    static = np.broadcast_to(draws.static, (K + 1, *draws.static.shape))
+    pos = np.concatenate([draws.truth[:, :, : sc.dim], mobile, static], axis=1)
+    is_anchor = np.r_[np.zeros(sc.agents, bool), np.ones(sc.n_anchors, bool)]
+    comm = sc.comm_range_m or None
+    return Network(pos, is_anchor, comm_range_m=comm, dt_s=sc.dt_s, anchors_move=True)

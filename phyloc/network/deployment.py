@@ -403,7 +403,7 @@ class Network:
     Parameters
     ----------
     positions : [n_snapshots, n_nodes, dim] float64
-        True positions [m]; anchors must not move.
+        True positions [m]; anchors must not move unless ``anchors_move``.
     is_anchor : [n_nodes] bool
     comm_range_m : float, optional
         Communication range [m]; ``None``: fully meshed.
@@ -414,6 +414,11 @@ class Network:
         [m/s²], CA only.
     dt_s : float, optional
         Sampling period between snapshots [s].
+    anchors_move : bool
+        Anchors may change position between snapshots (mobile anchors whose trajectory is the
+        output of a control loop, :func:`phyloc.control.loop.realized_network`); their
+        positions are known to the localizers at every snapshot. Default False: a moving anchor
+        is an error.
     """
 
     positions: np.ndarray
@@ -422,6 +427,7 @@ class Network:
     velocities: np.ndarray | None = None
     accelerations: np.ndarray | None = None
     dt_s: float | None = None
+    anchors_move: bool = False
     _links: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self):
@@ -438,8 +444,11 @@ class Network:
                 f"must be a bool array of shape ({pos.shape[1]},)",
             )
         anchor = anchor.copy()
-        if np.any(pos[:, anchor] != pos[:1, anchor]):
-            raise ValidationError("positions", "moving anchors", "anchors must be static")
+        moving = v.boolean("anchors_move", self.anchors_move)
+        if not moving and np.any(pos[:, anchor] != pos[:1, anchor]):
+            raise ValidationError(
+                "positions", "moving anchors", "anchors must be static (or anchors_move=True)"
+            )
         for arr in (pos, anchor):
             arr.setflags(write=False)
         object.__setattr__(self, "positions", pos)
