@@ -2,7 +2,7 @@
 
 Commands:
 
-* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|all] [--quick] [--json PATH]``:
+* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|all] [--quick] [--json PATH]``:
   run benchmarks; print cost per unit of work and ratios to references.
 * ``phyloc evaluate RECIPE|OUT.h5 [--fast] [--out DIR] [--json PATH]
   [--workers N | --scheduler ADDR] [--plugin MODULE]``: run an experiment recipe, or localize
@@ -56,6 +56,7 @@ BENCHMARKS = {
     "datasets": "phyloc.benchmarks.bench_datasets",
     "pfbp": "phyloc.benchmarks.bench_pfbp",
     "nbp": "phyloc.benchmarks.bench_nbp",
+    "control": "phyloc.benchmarks.bench_control",
 }
 
 
