@@ -49,7 +49,7 @@ def control_set(speed_m_s: float = 2.0, n_azimuth: int = 8, elevations_deg=(-45.
 
     Returns
     -------
-    U : [|U|, 3] float64 (or [|U|, 2] for a 2-D set) [m/s]
+    U : ``[|U|, 3]`` float64 (``[|U|, 2]`` for a 2-D set) [m/s]
 
     Examples
     --------

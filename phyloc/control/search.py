@@ -61,7 +61,7 @@ class ControlProblem:
         Current positions of the mobile anchors.
     static : [M₀, dim]
         Positions of the static anchors.
-    controls : [|U|, dim]
+    controls : ``[|U|, dim]``
         The control set U [m/s] (:func:`~phyloc.control.fim.control_set`).
     dt_s : float
         T_Δ [s].
