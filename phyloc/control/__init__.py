@@ -24,6 +24,11 @@ Examples
 >>> u, cost = search(p, 2, method="exact")
 >>> u.shape, bool(cost > 0)
 ((1, 3), True)
+
+References
+----------
+W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information approach,"
+arXiv:2212.14554, 2022.
 """
 
 from phyloc.control.fim import control_set, position_cost, range_information, update_covariance
