@@ -242,6 +242,26 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_json(c)
     c.set_defaults(func=cmd_channel_stats)
+
+    a = sub.add_parser("analyze", help="analyses from the theory (DiPNet §IV)")
+    asub = a.add_subparsers(dest="analysis", metavar="ANALYSIS")
+    asub.required = True
+    bs = asub.add_parser(
+        "belief-shift",
+        help="belief shift under a distance offset: DiPNet vs two-step (DiPNet Fig. 3)",
+    )
+    bs.add_argument(
+        "--nu", type=float, default=1.0, help="ν = CRB/σ0², measurement/prior (default 1)"
+    )
+    bs.add_argument("--subcarriers", type=int, default=2569, metavar="N", help="N (default 2569)")
+    bs.add_argument(
+        "--png",
+        metavar="PATH",
+        default=None,
+        help="figure (default belief_shift_nu<ν>.png)",
+    )
+    _add_json(bs)
+    bs.set_defaults(func=cmd_belief_shift)
     return parser
 
 
@@ -583,6 +603,36 @@ def cmd_channel_stats(args) -> int:
             "machine": machine_meta(),
         }
         path = write_json(args.json, res["figures"], meta, res.get("series"), force=args.force)
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_belief_shift(args) -> int:
+    """``phyloc analyze belief-shift``: DiPNet Fig. 3 and its summary numbers."""
+    from pathlib import Path
+
+    from phyloc.analysis.belief_shift import figure3, plot_figure3
+    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+
+    png = Path(args.png or f"belief_shift_nu{args.nu:g}.png")
+    for p in (args.json, png):
+        if p and Path(p).exists() and not args.force:
+            raise OutputExistsError(p)
+    res = figure3(args.nu, args.subcarriers)
+    figures = {f"belief_shift.{k}": v for k, v in res["figures"].items()}
+    print(f"belief shift (DiPNet §IV-B), ν = {args.nu:g}, N = {args.subcarriers}; [c0/B]")
+    print(format_table(list(figures.items()), ["figure", "value"]))
+    plot_figure3(res, png, args.nu)
+    print(f"wrote {png}")
+    if args.json:
+        meta = {
+            "command": "analyze belief-shift",
+            "nu": args.nu,
+            "subcarriers": args.subcarriers,
+            "machine": machine_meta(),
+        }
+        series = {f"belief_shift.{k}": v for k, v in res["series"].items()}
+        path = write_json(args.json, figures, meta, series, force=args.force)
         print(f"wrote {path}")
     return 0
 
