@@ -285,7 +285,7 @@ def plot_figure3(result: dict, path, nu: float) -> None:
     FigureCanvasAgg(fig)
     ax = fig.subplots()
     ax.plot(s["delta"], s["dipnet"], color="C0", label="DiPNet (ascent from the truth)")
-    ax.plot(s["delta"], s["bound"], color="C3", label="Theorem 2 bound, eq. (46)")
+    ax.plot(s["delta"], s["bound"], color="C3", label="Theorem 2 bound, DiPNet eq. (46)")
     ax.plot(s["delta"], s["two_step"], color="C2", label="two-step Gaussian, δ/(1 + ν)")
     ax.axhline(1.0, color="k", lw=0.8, label="one sample, c0/B")
     ax.set_ylim(0.0, 1.5)
