@@ -199,7 +199,7 @@ def theorem1_bound(delta, n_subcarriers=DEFAULT_N):
     Examples
     --------
     >>> [round(float(r), 3) for r in theorem1_bound([0.5, 1.5, 30.5])]
-    [1.0, 0.715, 0.507]
+    [1.0, 0.57, 0.503]
     """
     n = v.integer("n_subcarriers", n_subcarriers, minimum=2)
     d = np.abs(np.atleast_1d(np.asarray(delta, dtype=float)))
