@@ -238,10 +238,7 @@ def run_policy(sc, draws, spec: PolicySpec, estimator, policy_rng, estimator_rng
     model = sc.model
     F, Q = model.matrices()
     dim = sc.dim
-    if tracker_cls is SPBPTracker:
-        tracker = SPBPTracker(model, draws.prior, options=opts)
-    else:
-        tracker = tracker_cls(model, draws.prior, estimator_rng, opts)
+    tracker = tracker_cls(model, draws.prior, estimator_rng, opts)  # SP-BP ignores the rng
     mean, cov = draws.prior.mean.copy(), draws.prior.cov.copy()
     mobile = draws.mobile0.copy()
     K = sc.steps

@@ -30,3 +30,15 @@ def scenario_specs(channel, scenarios: dict) -> dict:
         except ValidationError as exc:
             raise ValidationError(f"experiment.scenarios.{tok}", exc.value, exc.allowed) from None
     return specs
+
+
+def grouped_bars(ax, labels, groups: dict, *, fontsize: int = 8) -> None:
+    """Bars of ``groups`` (``{legend label: one value per x label}``) side by side per label."""
+    import numpy as np
+
+    x = np.arange(len(labels))
+    width = 0.8 / len(groups)
+    for j, (name, values) in enumerate(groups.items()):
+        ax.bar(x + j * width, values, width, label=name)
+    ax.set_xticks(x + 0.4 - width / 2, labels, rotation=20, fontsize=fontsize)
+    ax.legend(fontsize=fontsize)

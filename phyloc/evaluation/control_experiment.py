@@ -45,7 +45,7 @@ from phyloc.config import Recipe
 from phyloc.control.loop import ControlScenario, draw_trial, make_estimator, run_policy
 from phyloc.control.policies import POLICIES, PolicySpec
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict
+from phyloc.evaluation._common import experiment_from_dict, grouped_bars
 from phyloc.parallel import run_tasks
 
 #: Squared errors of a diverged estimator count as this [m²] in the log-MSE means.
@@ -374,19 +374,12 @@ def plot(results: dict, path) -> None:
         ax.set_title(f"example trial {meta['example_trial']}: mobile anchors' paths")
         ax.legend(fontsize=7)
     ax = fig.add_subplot(1, 3, 3)
-    ths = meta["thresholds_m"]
-    x = np.arange(len(pols))
-    width = 0.8 / len(ths)
-    for i, t in enumerate(ths):
-        ax.bar(
-            x + i * width,
-            [f[f"{p}.track_loss_pct_{_fmt_m(t)}m"] for p in pols],
-            width,
-            label=f"> {t:g} m",
-        )
-    ax.set_xticks(x + 0.4 - width / 2, pols, rotation=20, fontsize=8)
+    groups = {
+        f"> {t:g} m": [f[f"{p}.track_loss_pct_{_fmt_m(t)}m"] for p in pols]
+        for t in meta["thresholds_m"]
+    }
+    grouped_bars(ax, pols, groups)
     ax.set_ylabel("tracks lost [%]")
     ax.set_title("track loss (final position error)")
-    ax.legend(fontsize=8)
     fig.suptitle(f"Mobile-anchor control — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}")
     fig.savefig(path, dpi=100)

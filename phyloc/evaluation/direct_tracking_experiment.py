@@ -54,7 +54,7 @@ from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict
+from phyloc.evaluation._common import experiment_from_dict, grouped_bars
 from phyloc.evaluation.localization_experiment import LocalizationSpec, _localize
 from phyloc.evaluation.metrics import rigid_align
 from phyloc.evaluation.ranging_experiment import RangingSpec
@@ -480,19 +480,10 @@ def plot(results: dict, path) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax = axes[1, -1]
-    x = np.arange(len(methods))
-    width = 0.8 / len(runs)
-    for j, r in enumerate(runs):
-        ax.bar(
-            x + j * width,
-            [f[f"{m}.{r}.errors_over_2m_pct"] for m in methods],
-            width,
-            label=r,
-        )
-    ax.set_xticks(x + 0.4 - width / 2, methods, rotation=20, fontsize=7)
+    groups = {r: [f[f"{m}.{r}.errors_over_2m_pct"] for m in methods] for r in runs}
+    grouped_bars(ax, methods, groups, fontsize=7)
     ax.set_ylabel("errors > 2 m [%]")
     ax.set_title("outliers")
-    ax.legend(fontsize=7)
     fig.suptitle(
         f"Direct localization over time — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
     )
