@@ -2,7 +2,7 @@
 
 Commands:
 
-* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|all] [--quick]
+* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|analysis|all] [--quick]
   [--json PATH]``: run benchmarks; print cost per unit of work and ratios to references.
 * ``phyloc evaluate RECIPE|OUT.h5 [--fast] [--out DIR] [--json PATH]
   [--workers N | --scheduler ADDR] [--plugin MODULE]``: run an experiment recipe, or localize
@@ -57,6 +57,7 @@ BENCHMARKS = {
     "pfbp": "phyloc.benchmarks.bench_pfbp",
     "nbp": "phyloc.benchmarks.bench_nbp",
     "control": "phyloc.benchmarks.bench_control",
+    "analysis": "phyloc.benchmarks.bench_analysis",
 }
 
 
@@ -262,6 +263,57 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_json(bs)
     bs.set_defaults(func=cmd_belief_shift)
+    cc = asub.add_parser(
+        "cci",
+        help="conditional concavity indicator of channel scenarios (DiPNet Fig. 2)",
+    )
+    cc.add_argument(
+        "scenarios",
+        nargs="+",
+        metavar="SCENARIO",
+        help="scenario names (winner2_c2, exponential, ...) or scenario TOML files",
+    )
+    cc.add_argument(
+        "--bandwidth-hz",
+        type=float,
+        default=None,
+        metavar="B",
+        help="bandwidth B = N f_sc [Hz] (default 37.6 MHz, DiPNet §V-A)",
+    )
+    cc.add_argument(
+        "--subcarriers", type=int, default=2569, metavar="N", help="N, odd (default 2569)"
+    )
+    cc.add_argument(
+        "--carrier-hz",
+        type=float,
+        default=5.2e9,
+        metavar="FC",
+        help="carrier frequency of the path-loss laws [Hz] (default 5.2e9)",
+    )
+    cc.add_argument(
+        "--distance-m",
+        type=float,
+        default=10.0,
+        metavar="D",
+        help="distance of the reported minimal bandwidth of DiPNet eq. (44) [m] (default 10)",
+    )
+    cc.add_argument(
+        "--links",
+        type=int,
+        default=20000,
+        metavar="N",
+        help="Monte Carlo links per distance, 0 for none (default 20000)",
+    )
+    cc.add_argument(
+        "--mc-points", type=int, default=21, metavar="K", help="Monte Carlo distances (default 21)"
+    )
+    cc.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    cc.add_argument("--no-progress", action="store_true", help="no progress bar")
+    cc.add_argument(
+        "--png", metavar="PATH", default=None, help="figure (default cci_<scenarios>.png)"
+    )
+    _add_json(cc)
+    cc.set_defaults(func=cmd_cci)
     return parser
 
 
@@ -338,6 +390,8 @@ EXPERIMENTS = {
     "static": "phyloc.evaluation.static_experiment",
     "direct_tracking": "phyloc.evaluation.direct_tracking_experiment",
     "control": "phyloc.evaluation.control_experiment",
+    "cci": "phyloc.evaluation.cci_experiment",
+    "belief_shift": "phyloc.evaluation.belief_shift_experiment",
 }
 
 
@@ -633,6 +687,65 @@ def cmd_belief_shift(args) -> int:
         }
         series = {f"belief_shift.{k}": v for k, v in res["series"].items()}
         path = write_json(args.json, figures, meta, series, force=args.force)
+        print(f"wrote {path}")
+    return 0
+
+
+def cmd_cci(args) -> int:
+    """``phyloc analyze cci``: DiPNet Fig. 2 for any scenarios, and its summary numbers."""
+    from pathlib import Path
+
+    from phyloc.evaluation import cci_experiment as cci
+    from phyloc.phy.system import OFDMSystem
+    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+
+    label = "_".join(Path(s).stem for s in args.scenarios)
+    png = Path(args.png or f"cci_{label}.png")
+    for p in (args.json, png):
+        if p and Path(p).exists() and not args.force:
+            raise OutputExistsError(p)
+    flags = {
+        "system.n_subcarriers": "--subcarriers",
+        "system.subcarrier_spacing_hz": "--bandwidth-hz",
+        "experiment.links": "--links",
+        "experiment.mc_points": "--mc-points",
+        "experiment.distance_m": "--distance-m",
+    }
+    try:
+        n = args.subcarriers
+        bw = 14.65e3 * n if args.bandwidth_hz is None else args.bandwidth_hz
+        system = OFDMSystem(
+            n_subcarriers=n,
+            subcarrier_spacing_hz=bw / n if n else bw,
+            carrier_frequency_hz=args.carrier_hz,
+        )
+        exp = cci.CCIExperimentSpec(
+            scenarios=tuple(args.scenarios),
+            links=args.links,
+            mc_points=args.mc_points,
+            distance_m=args.distance_m,
+        )
+    except ValidationError as exc:
+        if exc.field not in flags:
+            raise
+        value = args.bandwidth_hz if exc.field == "system.subcarrier_spacing_hz" else exc.value
+        raise ValidationError(flags[exc.field], value, exc.allowed) from None
+    res = cci.study(
+        exp.scenarios,
+        system,
+        exp,
+        seed=args.seed,
+        progress=not args.no_progress,
+        where="SCENARIO",
+    )
+    print(format_table(cci.summary_rows(res), cci.SUMMARY_HEADERS))
+    for line in cci.summary_lines(res):
+        print(line)
+    cci.plot(res, png)
+    print(f"wrote {png}")
+    if args.json:
+        res["meta"].update({"command": "analyze cci", "machine": machine_meta()})
+        path = write_json(args.json, res["figures"], res["meta"], res["series"], force=args.force)
         print(f"wrote {path}")
     return 0
 

@@ -36,7 +36,17 @@ from phyloc._validate import check_keys
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.phy.system import OFDMSystem
 
-KINDS = ("ranging", "localization", "dataset", "tracking", "static", "direct_tracking", "control")
+KINDS = (
+    "ranging",
+    "localization",
+    "dataset",
+    "tracking",
+    "static",
+    "direct_tracking",
+    "control",
+    "cci",
+    "belief_shift",
+)
 TOP_LEVEL = ("kind", "name", "seed", "description")
 SECTIONS = ("system", "network", "channel", "ranging", "experiment", "localization", "dataset")
 

@@ -73,6 +73,8 @@ def test_every_shipped_recipe_validates(path):
         "static": "StaticExperimentSpec",
         "direct_tracking": "DirectTrackingExperimentSpec",
         "control": "ControlExperimentSpec",
+        "cci": "CCIExperimentSpec",
+        "belief_shift": "BeliefShiftSpec",
     }[recipe.kind]
     cls = getattr(mod, spec_cls, None)
     if cls is None:
