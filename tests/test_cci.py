@@ -11,6 +11,7 @@ from scipy.integrate import quad
 
 from phyloc.analysis import cci
 from phyloc.channels import draw_links
+from phyloc.channels.scenario import shipped_root
 from phyloc.cli import main
 from phyloc.errors import ValidationError
 from phyloc.evaluation import cci_experiment
@@ -245,9 +246,7 @@ def test_no_bandwidth_helps_when_other_paths_outweigh_the_direct_one(tmp_path):
 
 
 def _read_shipped(fname):
-    from importlib.resources import files
-
-    return (files("phyloc.scenarios") / fname).read_text()
+    return (shipped_root() / fname).read_text()
 
 
 # -- errors ---------------------------------------------------------------------------------
@@ -326,3 +325,50 @@ def test_recipe_runs_and_is_the_same_on_two_workers(tmp_path):
         one["series"]["cci.winner2_c2.mc"].tolist() == two["series"]["cci.winner2_c2.mc"].tolist()
     )
     assert set(one["meta"]["scenarios"]) == {"winner2_c2", "winner2_d1"}
+
+
+# -- the expected SCF of eq. (35) ---------------------------------------------------------------
+@pytest.mark.parametrize("name", ["awgn", "exponential", "winner2_c2", "winner2_d1"])
+@pytest.mark.parametrize("d0", [0.2, 10.0, 200.0])
+def test_expected_scf_curvature_at_the_truth_is_the_cci(name, d0):
+    """Finite differences of eq. (35) at Δd = 0 equal CCI·ω²(N² − 1)/12/c0² (eqs. (41)–(42))."""
+    h = 0.002 * C0 / SYSTEM.bandwidth_hz
+    f = cci.expected_scf(name, d0, [0.0, h, 2 * h], SYSTEM)
+    second = (-f[2] + 16 * f[1] - 15 * f[0]) / (6 * h * h)
+    pw = cci.expected_powers(name, [d0], SYSTEM)
+    c = cci.cci_exponential(pw, cci.exponential_rates(name), SYSTEM)[0]
+    n = SYSTEM.n_subcarriers
+    assert second == pytest.approx(c * SYSTEM.omega**2 * (n * n - 1) / 12 / C0**2, rel=1e-4)
+    # at the truth: the LOS power plus every other path's kernel value E[D²(δ + b)]/N² ≤ power
+    assert f[0] <= pw.p_los[0] + pw.other_power[0] + 1e-12
+
+
+def test_expected_scf_peak_leaves_the_truth_only_where_the_cci_is_positive():
+    off = np.linspace(0.0, 0.5, 201) * C0 / SYSTEM.bandwidth_hz
+    d1_near = cci.expected_scf("winner2_d1", 0.2, off, SYSTEM)  # exponential CCI > 0 here
+    assert np.argmax(d1_near) > 0
+    d1_far = cci.expected_scf("winner2_d1", 10.0, off, SYSTEM)  # CCI < 0
+    assert np.argmax(d1_far) == 0 and np.all(np.diff(d1_far) < 0)
+
+
+def test_expected_scf_equals_the_theta_average_of_drawn_paths():
+    """Eq. (35) for the exponential scenario against the mean SCF of drawn links (θ uniform,
+    noise-free)."""
+    rng = np.random.default_rng(9)
+    d0, n_links = 5.0, 40_000
+    draw = draw_links("exponential", np.full(n_links, d0), rng, system=SYSTEM)
+    norm = cci.expected_powers("exponential", [d0], SYSTEM).los_direct_w[0]
+    link = draw.paths.link_index()
+    theta = rng.uniform(0, 2 * np.pi, n_links)[link]
+    dd = 0.7 * C0 / SYSTEM.bandwidth_hz
+    tau = np.sqrt(d0**2 + dd**2 - 2 * d0 * dd * np.cos(theta)) / C0
+    u = 0.5 * SYSTEM.omega * (draw.paths.delays - tau)
+    n = SYSTEM.n_subcarriers
+    kern = np.where(np.abs(np.sin(u)) < 1e-12, n, np.sin(n * u) / np.sin(u))
+    # the SCF itself, |Σ_l α_l D(τ_l − τ)|²: cross terms included (zero mean, DiPNet App. II)
+    amp = draw.paths.gains * kern
+    re = np.bincount(link, amp.real, n_links)
+    im = np.bincount(link, amp.imag, n_links)
+    q = (re**2 + im**2) / (norm * n * n)
+    expect = cci.expected_scf("exponential", d0, [dd], SYSTEM, n_theta=256)[0]
+    assert abs(q.mean() - expect) < 4 * q.std() / np.sqrt(n_links)

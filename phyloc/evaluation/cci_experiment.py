@@ -19,9 +19,12 @@ Figures, for every scenario ``s`` (its name)::
     cci.s.mc_above_bound_z               max (MC − bound) / standard error (≤ ~3 expected)
     cci.s.min_bandwidth_hz               smallest B making (44) negative at distance_m [Hz]
     cci.s.<curve>_at_max_m               bound, exponential and AWGN at the largest d0
+    cci.s.scf_argmax_offset_m            where the expected SCF (DiPNet eq. (35), exponential
+                                         delays) around the truth peaks, at distance_m [m]
 
 Series: ``cci.s.d0_m``, ``.bound``, ``.exponential``, ``.awgn``, ``.p_los``,
-``.other_power``, ``.min_bandwidth_hz`` and ``cci.s.mc_d0_m``, ``.mc``, ``.mc_se``.
+``.other_power``, ``.min_bandwidth_hz``, ``cci.s.mc_d0_m``, ``.mc``, ``.mc_se`` and the
+expected SCF ``cci.s.scf`` over ``cci.s.scf_offset_m`` (±3 c0/B around the truth).
 
 References
 ----------
@@ -45,6 +48,7 @@ from phyloc.analysis.cci import (
     cci_exponential,
     cci_monte_carlo,
     expected_powers,
+    expected_scf,
     min_bandwidth_hz,
     negative_above,
     require_los,
@@ -53,7 +57,7 @@ from phyloc.config import Recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict
 from phyloc.parallel import run_tasks
-from phyloc.phy.system import OFDMSystem
+from phyloc.phy.system import C0, OFDMSystem
 
 SUMMARY_HEADERS = [
     "scenario",
@@ -198,6 +202,10 @@ def study(
             }
         )
         rates[name] = c["rates"]
+        offsets = np.linspace(-3.0, 3.0, 121) * C0 / system.bandwidth_hz
+        scf = expected_scf(scn, exp.distance_m, np.abs(offsets), system)
+        figures[f"{p}.scf_argmax_offset_m"] = float(abs(offsets[np.argmax(scf)]))
+        series.update({f"{p}.scf_offset_m": offsets, f"{p}.scf": scf})
         if mc:
             res = np.array(mc[j * exp.mc_points : (j + 1) * exp.mc_points])
             m, se = res[:, 0], res[:, 1]
@@ -294,9 +302,10 @@ def plot(results: dict, path) -> None:
     from matplotlib.figure import Figure
 
     ser, meta = results["series"], results["meta"]
-    fig = Figure(figsize=(11.5, 4.6))
+    fig = Figure(figsize=(16.0, 4.8))
     FigureCanvasAgg(fig)
-    ax, bx = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.5, 1]})
+    ax, bx, cx = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1.5, 1, 1]})
+    unit = C0 / meta["bandwidth_hz"]
     for i, s in enumerate(meta["scenarios"]):
         col = f"C{i}"
         p = f"cci.{s}"
@@ -315,6 +324,8 @@ def plot(results: dict, path) -> None:
                 label=f"{s}: Monte Carlo (±2 s.e.)",
             )
         bx.plot(d, np.asarray(ser[f"{p}.min_bandwidth_hz"]) / 1e6, color=col, label=s)
+        scf = np.asarray(ser[f"{p}.scf"])
+        cx.plot(np.asarray(ser[f"{p}.scf_offset_m"]) / unit, scf / scf.max(), color=col, label=s)
     ax.axhline(0.0, color="k", lw=0.6)
     ax.set_xscale("log")
     ax.set_ylim(-1.15, 1.0)
@@ -331,5 +342,10 @@ def plot(results: dict, path) -> None:
     bx.set_title("Bandwidth that guarantees concavity")
     bx.grid(True, which="both", alpha=0.3)
     bx.legend(fontsize=7)
+    cx.set_xlabel("agent displacement Δd [c0/B]")
+    cx.set_ylabel("expected SCF / its maximum")
+    cx.set_title(f"Expected SCF (35) around the truth, d0 = {meta['distance_m']:g} m")
+    cx.grid(True, alpha=0.3)
+    cx.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
