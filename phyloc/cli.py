@@ -436,9 +436,11 @@ def cmd_evaluate(args) -> int:
     }
     res = exp.run(recipe, **kw) if recipe is not None else exp.run_dataset(source, **kw)
     text = recipe.text if recipe is not None else _dataset_recipe_text(source)
-    res["meta"].update(
-        {"seconds": time.perf_counter() - t0, "machine": machine_meta(), "recipe_text": text}
-    )
+    wall = time.perf_counter() - t0
+    res["meta"].update({"seconds": wall, "machine": machine_meta(), "recipe_text": text})
+    # every run records its wall time and worker count among its figures
+    res["figures"]["run.wall_s"] = wall
+    res["figures"]["run.workers"] = 0 if args.scheduler else int(args.workers or 1)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "results.json", res["figures"], res["meta"], res["series"], force=True)
     (out / "recipe.toml").write_text(text)

@@ -11,10 +11,13 @@ which order they finish. :func:`run_tasks` runs ``fn(payload, seed_sequence)`` f
 Results come back in task order. A progress bar (tqdm) shows completed tasks.
 
 Tasks are the unit of parallelism: each runs with its BLAS library limited to one thread
-(``threadpoolctl``). The linear algebra inside a task is small (joint states of at most a few
-hundred dimensions), where a multi-threaded BLAS gains little and, on a busy machine, loses a
-lot: a PF-BP Scenario II step took 15–22 s with OpenBLAS' default threads next to two other busy
-processes on 2 cores and 2 s with one thread.
+(``threadpoolctl``). When several tasks run side by side, each also keeps its Numba kernels and
+FFTs to its share of the cores (:func:`threads_per_task`: ``max(1, cpus // workers)``), so
+workers × threads never exceeds the cores; a task alone in this process uses them all. The
+linear algebra inside a task is small (joint states of at most a few hundred dimensions), where
+a multi-threaded BLAS gains little and, on a busy machine, loses a lot: a PF-BP Scenario II
+step took 15–22 s with OpenBLAS' default threads next to two other busy processes on 2 cores
+and 2 s with one thread.
 
 References
 ----------
@@ -42,13 +45,41 @@ def task_seeds(seed: int, n_tasks: int) -> list[np.random.SeedSequence]:
     return np.random.SeedSequence(int(seed)).spawn(int(n_tasks))
 
 
-class _OneBlasThread:
-    """``fn(payload, seed)`` with BLAS limited to one thread (picklable for Dask)."""
+def limit_threads(n: int) -> None:
+    """Keep this process's Numba kernels and FFTs to ``n`` threads (BLAS is limited per task)."""
+    import numba
 
-    def __init__(self, fn):
+    from phyloc.phy import fft
+
+    numba.set_num_threads(max(1, min(int(n), numba.config.NUMBA_NUM_THREADS)))
+    if fft.threads() != n:
+        fft.set_backend(fft.backend(), threads=int(n))
+
+
+def threads_per_task(workers: int) -> int:
+    """The thread policy: ``workers`` tasks side by side share the CPUs this process may use,
+    so each gets ``max(1, cpus // workers)`` Numba and FFT threads (workers × threads ≤ cores)."""
+    return max(1, _cpus() // max(1, int(workers)))
+
+
+def _cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+class _OneBlasThread:
+    """``fn(payload, seed)`` with BLAS limited to one thread and, when ``threads`` is given,
+    Numba and FFTs limited to that many (picklable for Dask)."""
+
+    def __init__(self, fn, threads: int | None = None):
         self.fn = fn
+        self.threads = threads
 
     def __call__(self, payload, seed):
+        if self.threads is not None:
+            limit_threads(self.threads)
         with threadpool_limits(limits=1, user_api="blas"):
             return self.fn(payload, seed)
 
@@ -84,37 +115,57 @@ def run_tasks(
     """
     payloads = list(payloads)
     seeds = task_seeds(seed, len(payloads))
-    fn = _OneBlasThread(fn)
     show = progress and not _quiet_progress()
     if scheduler is None and (workers is None or v.integer("workers", workers, minimum=1) == 1):
+        fn = _OneBlasThread(fn)
         out = []
         for p, s in tqdm(
             list(zip(payloads, seeds, strict=True)), desc=desc, disable=not show, leave=False
         ):
             out.append(fn(p, s))
         return out
+    # several tasks side by side: each keeps to its share of the cores (a remote cluster's
+    # workers run one task per thread, so one thread each)
+    fn = _OneBlasThread(fn, 1 if scheduler is not None else threads_per_task(workers))
     return _run_dask(
         fn, payloads, seeds, workers=workers, scheduler=scheduler, desc=desc, show=show
     )
+
+
+#: Environment of embedded Dask workers. Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536``,
+#: which also freezes glibc's mmap threshold at 128 KiB: every array above that is then a fresh
+#: ``mmap`` whose pages fault in on first touch, and the conversions to the time domain ran 3×
+#: slower in a worker than in this process (2 workers reached 0.5 of twice one worker's
+#: throughput). Arrays below 64 MiB come from the heap again, and freed memory is kept.
+WORKER_MALLOC_ENV = {"MALLOC_MMAP_THRESHOLD_": 2**26, "MALLOC_TRIM_THRESHOLD_": 2**30}
+
+
+def local_cluster(workers: int):
+    """An embedded Dask ``LocalCluster`` of ``workers`` single-threaded processes, with
+    :data:`WORKER_MALLOC_ENV` in their environment (a context manager)."""
+    import dask
+    from dask.distributed import LocalCluster
+
+    key = "distributed.nanny.pre-spawn-environ"
+    with dask.config.set({f"{key}.{k}": val for k, val in WORKER_MALLOC_ENV.items()}):
+        return LocalCluster(
+            n_workers=int(workers),
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=40,
+        )
 
 
 @contextlib.contextmanager
 def dask_client(*, workers=None, scheduler=None):
     """A Dask client: on an embedded ``LocalCluster`` of ``workers`` single-threaded processes,
     or connected to ``scheduler`` (an address); closed (and the cluster stopped) on exit."""
-    from dask.distributed import Client, LocalCluster
+    from dask.distributed import Client
 
     with contextlib.ExitStack() as stack:
         if scheduler is None:
-            cluster = stack.enter_context(
-                LocalCluster(
-                    n_workers=int(workers),
-                    threads_per_worker=1,
-                    processes=True,
-                    dashboard_address=None,
-                    silence_logs=40,
-                )
-            )
+            cluster = stack.enter_context(local_cluster(int(workers)))
             yield stack.enter_context(Client(cluster))
         else:
             yield stack.enter_context(Client(scheduler))

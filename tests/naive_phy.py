@@ -63,3 +63,66 @@ def refine_peaks_numpy(spectrum, n, w, d0, spacing, n_iter):
     far = np.abs(d - d0) > spacing
     d[far] = np.asarray(d0)[far]
     return d
+
+
+# -- Gaussian noise (twin of phyloc.phy._gauss, in plain Python integers) ---------------------
+M64 = (1 << 64) - 1
+
+
+def splitmix64_py(z):
+    """One SplitMix64 step (Blackman and Vigna): ``(new state, output)``."""
+    z = (z + 0x9E3779B97F4A7C15) & M64
+    o = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & M64
+    o = ((o ^ (o >> 27)) * 0x94D049BB133111EB) & M64
+    return z, o ^ (o >> 31)
+
+
+def xoshiro_py(s):
+    """xoshiro256** on a list of four Python ints; returns the output, advances ``s``."""
+
+    def rotl(x, k):
+        return ((x << k) | (x >> (64 - k))) & M64
+
+    out = (rotl((s[1] * 5) & M64, 7) * 9) & M64
+    t = (s[1] << 17) & M64
+    s[2] ^= s[0]
+    s[3] ^= s[1]
+    s[1] ^= s[2]
+    s[0] ^= s[3]
+    s[2] ^= t
+    s[3] = rotl(s[3], 45)
+    return out
+
+
+def normal_rows_py(seeds, scale, zx, zf, zk, m):
+    """Ziggurat normals row by row, exactly as ``normal_rows_kernel`` (slow; tests only)."""
+    import math
+
+    out = np.empty((len(seeds), m))
+    for i, seed in enumerate(seeds):
+        z, s = int(seed), []
+        for _ in range(4):
+            z, o = splitmix64_py(z)
+            s.append(o)
+        for j in range(m):
+            while True:
+                r = xoshiro_py(s)
+                idx = r & 0xFF
+                neg = bool(r & 0x100)
+                rabs = r >> 12
+                x = rabs * (float(zx[idx]) * (1.0 / 4503599627370496.0))
+                if rabs < int(zk[idx]):
+                    break
+                if idx == 0:
+                    while True:
+                        xx = -math.log(1.0 - (xoshiro_py(s) >> 11) / 9007199254740992.0) / zx[1]
+                        yy = -math.log(1.0 - (xoshiro_py(s) >> 11) / 9007199254740992.0)
+                        if yy + yy > xx * xx:
+                            x = float(zx[1] + xx)
+                            break
+                    break
+                y = zf[idx] + (xoshiro_py(s) >> 11) / 9007199254740992.0 * (zf[idx + 1] - zf[idx])
+                if y < math.exp(-0.5 * x * x):
+                    break
+            out[i, j] = -scale[i] * x if neg else scale[i] * x
+    return out

@@ -16,8 +16,10 @@ ROOT = Path(__file__).resolve().parents[1] / "phyloc"
 
 #: Bottom to top. A module may import only from its own layer or below.
 LAYERS = [
-    ["phyloc", "phyloc.errors", "phyloc._validate", "phyloc.parallel"],
-    ["phyloc.phy", "phyloc.reporting"],  # reporting records the FFT backend in its metadata
+    ["phyloc", "phyloc.errors", "phyloc._validate"],
+    # reporting records the FFT backend in its metadata; parallel keeps each task's Numba
+    # kernels and FFTs to its share of the cores
+    ["phyloc.phy", "phyloc.reporting", "phyloc.parallel"],
     ["phyloc.channels", "phyloc.network", "phyloc.config"],
     ["phyloc.ranging", "phyloc.analysis"],
     ["phyloc.localization"],

@@ -41,6 +41,8 @@ def test_evaluate_writes_results_and_never_overwrites(tmp_path, capsys, monkeypa
         assert name in f
     assert f["c2.n_links"] == 12  # 4 agents, fully meshed, both directions
     assert doc["meta"]["seed"] == 1 and "recipe_text" in doc["meta"]
+    # every run records its wall time and worker count among its figures
+    assert f["run.workers"] == 1 and f["run.wall_s"] == doc["meta"]["seconds"] > 0
     assert (out / "tiny.png").stat().st_size > 1000
     assert (out / "recipe.toml").read_text() == TINY
     before = (out / "results.json").read_bytes()

@@ -50,6 +50,10 @@ energy = power[tx].sum(axis=1)
 rk.sage_kernel(spec, power, tx, energy, n0, w, dist, gain,
                np.full(L, P, dtype=np.int64), 2, 0.3, 2, 3)
 parts += [dist.ravel(), gain.view(np.float64).ravel()]
+from phyloc.phy import _gauss as g
+z = np.empty((3, 4000))
+g.normal_rows_kernel(np.arange(3, dtype=np.uint64), np.ones(3), g.ZIG_X, g.ZIG_F, g.ZIG_K, z)
+parts.append(z.ravel())
 print(hashlib.sha256(np.concatenate(parts).tobytes()).hexdigest())
 """
 

@@ -480,8 +480,9 @@ def test_estimate_dispatch(paper_system, rng):
     for name in ("corr", "first_peak", "sage"):
         est = estimate(name, tab, variance="crb")
         assert est.method == name and not est.oracle
-        assert est.range_m[0] == pytest.approx(30.0, abs=0.1)
         np.testing.assert_allclose(est.variance_m2, ranging_variance(est.snr, tab, kind="crb"))
+        # 30 dB post-correlation SNR: √CRB ≈ 0.1 m; the estimate is within 4 of them
+        assert est.range_m[0] == pytest.approx(30.0, abs=4 * math.sqrt(est.variance_m2[0]))
 
 
 def test_estimator_input_errors(paper_system, rng):

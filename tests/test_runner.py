@@ -40,3 +40,32 @@ def test_tasks_run_with_one_blas_thread():
     for workers in (None, 2):
         for threads in run_tasks(_blas_threads, range(2), 3, workers=workers, progress=False):
             assert threads and all(t == 1 for t in threads)
+
+
+def _task_environment(payload, seed_seq):
+    import os
+
+    import numba
+
+    from phyloc.phy import fft
+
+    return numba.get_num_threads(), fft.threads(), os.environ.get("MALLOC_MMAP_THRESHOLD_")
+
+
+def test_thread_policy_keeps_workers_times_threads_within_the_cores():
+    """Side by side, each task keeps Numba and FFTs to its share of the cores, and embedded
+    workers allocate from the heap (the malloc settings of phyloc.parallel.WORKER_MALLOC_ENV)."""
+    from phyloc.parallel import WORKER_MALLOC_ENV, _cpus, threads_per_task
+
+    for w in (1, 2, 3, 8):
+        assert threads_per_task(w) >= 1
+        assert w * threads_per_task(w) <= max(_cpus(), w)
+    res = run_tasks(_task_environment, range(2), 3, workers=2, progress=False)
+    for numba_threads, fft_threads, mmap in res:
+        assert numba_threads == fft_threads == threads_per_task(2)
+        assert mmap == str(WORKER_MALLOC_ENV["MALLOC_MMAP_THRESHOLD_"])
+    # a task alone in this process keeps every core
+    import numba
+
+    alone = run_tasks(_task_environment, range(1), 3, progress=False)[0]
+    assert alone[0] == numba.get_num_threads()

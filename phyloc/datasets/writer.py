@@ -66,6 +66,7 @@ from phyloc.datasets.simulate import Realization, simulate_realization
 from phyloc.datasets.spec import DatasetSpec
 from phyloc.errors import ValidationError
 from phyloc.network import IsolatedNodesWarning, NetworkSpec, make_network
+from phyloc.parallel import limit_threads, threads_per_task
 from phyloc.phy.system import OFDMSystem
 from phyloc.phy.waveform import to_time_domain
 
@@ -242,17 +243,6 @@ class _ShardTask:
     threads: int | None = None
 
 
-def _limit_threads(n: int) -> None:
-    """One Dask worker per core: keep its Numba kernels and FFTs to ``n`` threads."""
-    import numba
-
-    from phyloc.phy import fft
-
-    numba.set_num_threads(max(1, min(n, numba.config.NUMBA_NUM_THREADS)))
-    if fft.threads() != n:
-        fft.set_backend(fft.backend(), threads=n)
-
-
 def _h5_attrs(dset, a: sc.ArraySpec) -> None:
     dset.attrs["units"] = a.units
     dset.attrs["axes"] = ",".join(a.axes)
@@ -263,7 +253,7 @@ def _write_shard(task: _ShardTask) -> dict:
     """Generate, write, checksum and atomically publish one shard; return its table row."""
     t_begin = time.perf_counter()
     if task.threads:
-        _limit_threads(task.threads)
+        limit_threads(task.threads)
     system, net_spec, chan_spec, dspec = task.system, task.network, task.channel, task.dataset
     r = task.stop - task.start
     K = net_spec.motion.n_snapshots
@@ -716,7 +706,7 @@ def generate(
         if scheduler is not None:
             threads = 1  # Dask's model: parallel tasks, one thread each
         elif workers and workers > 1:
-            threads = max(1, _cpus() // workers)
+            threads = threads_per_task(workers)
         tasks = [
             _ShardTask(
                 plan.system,
@@ -825,13 +815,6 @@ def _run_dask(tasks, done, *, workers, scheduler) -> None:
                 done(task, None, exc)
             else:
                 done(task, rec, None)
-
-
-def _cpus() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - non-Linux
-        return os.cpu_count() or 1
 
 
 def _crash_hook() -> dict:

@@ -86,8 +86,8 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
 
 
 def summary_rows(results: dict):
-    """One row per figure."""
-    return list(results["figures"].items())
+    """One row per belief-shift figure."""
+    return [(k, x) for k, x in results["figures"].items() if k.startswith("belief_shift.")]
 
 
 def summary_lines(results: dict):
