@@ -184,3 +184,31 @@ def sampled_mixture_numpy(
             ell = logsumexp(allc, axis=-1)
             _add_numpy(out[a], _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]]), gamma)
     return out
+
+
+def next_lambda_numpy(lw, delta, lam, ess_target, n_bisect=30):
+    """Twin of ``next_lambda_kernel``: the adaptive tempering step by bisection on the ESS
+    (normalized weights by logsumexp, all agents at once)."""
+    from scipy.special import logsumexp
+
+    def ess(step):
+        x = lw + step[:, None] * delta
+        x = np.where(np.isnan(x), -np.inf, x)
+        lse = logsumexp(x, axis=1, keepdims=True)
+        bad = ~np.isfinite(lse[:, 0])
+        with np.errstate(invalid="ignore"):
+            w = np.exp(x - lse)
+        w[bad] = 1.0 / x.shape[1]
+        return 1.0 / np.sum(w * w, axis=1)
+
+    room = 1.0 - lam
+    full = ess(room) >= ess_target
+    lo = np.zeros_like(lam)
+    hi = room.copy()
+    for _ in range(n_bisect):
+        mid = 0.5 * (lo + hi)
+        ok = ess(mid) >= ess_target
+        lo = np.where(ok, mid, lo)
+        hi = np.where(ok, hi, mid)
+    step = np.where(full, room, np.maximum(lo, 1e-6 * room))
+    return np.where(lam >= 1.0, 1.0, np.minimum(lam + step, 1.0))

@@ -9,6 +9,7 @@ from naive_direct import (
     direct_loglik_numpy,
     gauss_loglik_numpy,
     mixture_loglik_numpy,
+    next_lambda_numpy,
     systematic_resample_numpy,
 )
 
@@ -421,3 +422,36 @@ def test_outlier_floor_bounds_the_evidence_of_one_link(rng):
     plain = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1, outlier_nats=np.inf)
     ll = plain.loglik(X, pos, covs)
     assert ll.max() - ll.min() > 50.0  # unclipped: ~(140 m)²/(2·100 m²) ≈ 98 nats of pull
+
+
+def test_next_lambda_kernel_matches_its_twin_and_keeps_the_ess():
+    """Adaptive tempering (the safeguarded DPF's bridge): the kernel's step equals the NumPy
+    twin's, keeps the ESS at the target, and covers −inf weights, NaN increments and agents
+    already at λ = 1."""
+    rng = np.random.default_rng(4)
+    n, Q = 12, 500
+    lw = np.log(rng.dirichlet(np.ones(Q), n))
+    delta = rng.normal(0.0, 1.0, (n, Q)) * np.geomspace(0.1, 300.0, n)[:, None]
+    lam = rng.uniform(0.0, 0.9, n)
+    lam[0] = 1.0
+    lw[1, :200] = -np.inf
+    delta[2, :10] = np.nan
+    lw[3] = -np.inf  # no finite weight: uniform
+    target = 0.5 * Q
+    out = np.empty(n)
+    K.next_lambda_kernel(lw, delta, lam, target, 30, out)
+    ref = next_lambda_numpy(lw, delta, lam, target)
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-7)
+    assert out[0] == 1.0 and np.all(out >= lam) and np.all(out <= 1.0)
+
+    def ess(a, step):
+        x = lw[a] + step * np.nan_to_num(delta[a], nan=-np.inf)
+        w = np.exp(x - np.max(x))
+        return w.sum() ** 2 / np.sum(w * w)
+
+    bisected = 0
+    for a in range(4, n):
+        if out[a] < 1.0 and ess(a, 0.0) >= target:  # a bisected step: ESS at the target
+            assert ess(a, out[a] - lam[a]) == pytest.approx(target, rel=1e-3)
+            bisected += 1
+    assert bisected >= 3

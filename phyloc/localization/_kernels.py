@@ -75,6 +75,57 @@ def gauss_loglik_kernel(particles, offsets, nb_node, ranges, inv_var, centers, o
 
 
 @njit(cache=True)
+def _tempered_ess(lw, delta, step):
+    """ESS of the weights ``exp(lw_q + step·delta_q)``; ``Q`` when none is finite (uniform)."""
+    Q = lw.size
+    m = -np.inf
+    for q in range(Q):
+        x = lw[q] + step * delta[q]
+        if x == x and x > m:  # NaN counts as −inf
+            m = x
+    if not m > -np.inf:
+        return float(Q)
+    s1 = 0.0
+    s2 = 0.0
+    for q in range(Q):
+        x = lw[q] + step * delta[q]
+        if x == x and x > -np.inf:
+            e = np.exp(x - m)
+            s1 += e
+            s2 += e * e
+    return s1 * s1 / s2
+
+
+@njit(cache=True, parallel=True)
+def next_lambda_kernel(lw, delta, lam, ess_target, n_bisect, out):
+    """Adaptive tempering: per agent, the largest ``λ' ∈ (λ, 1]`` whose incremental weights
+    ``exp((λ' − λ)·delta)`` keep the ESS of ``lw + (λ' − λ)·delta`` at least ``ess_target``.
+
+    The whole remaining step when it qualifies; otherwise ``n_bisect`` bisections on
+    ``[0, 1 − λ]`` and at least ``1e-6·(1 − λ)``; 1 for agents already at 1.
+    """
+    n = lw.shape[0]
+    for a in prange(n):
+        if lam[a] >= 1.0:
+            out[a] = 1.0
+            continue
+        room = 1.0 - lam[a]
+        if _tempered_ess(lw[a], delta[a], room) >= ess_target:
+            step = room
+        else:
+            lo = 0.0
+            hi = room
+            for _ in range(n_bisect):
+                mid = 0.5 * (lo + hi)
+                if _tempered_ess(lw[a], delta[a], mid) >= ess_target:
+                    lo = mid
+                else:
+                    hi = mid
+            step = max(lo, 1e-6 * room)
+        out[a] = min(lam[a] + step, 1.0)
+
+
+@njit(cache=True)
 def systematic_resample_kernel(weights, u0, out):
     """Systematic resampling: ``out[i]`` = index of the particle covering ``(i + u0)/n``.
 

@@ -167,6 +167,8 @@ def mh_moves(X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, *, n_moves, 
     """
     n_agents, Q, _ = X.shape
     lam3 = lam[:, None]
+    if old_fn is not None and np.all(lam >= 1.0):
+        old_fn = None  # weight 1 − λ = 0 everywhere: the old likelihood drops out
     for _ in range(n_moves):
         std = np.maximum(X.std(axis=1, keepdims=True) * move_scale, 1e-4)
         Xp = X + std * rng.standard_normal(X.shape)

@@ -56,6 +56,7 @@ from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.analysis.efim import efim, position_crb
 from phyloc.errors import ValidationError
+from phyloc.localization import _kernels as K
 from phyloc.localization import particles as P
 from phyloc.localization.likelihoods import NodeBeliefs
 
@@ -388,23 +389,17 @@ def _anneal(X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options):
 
 def _next_lambda(lw, delta, lam, ess_target):
     """Per agent, the largest λ' in (λ, 1] whose incremental weights keep ESS >= target
-    (bisection on the step, all agents at once)."""
-
-    def ess(step):
-        w, _ = P.normalize_log_weights(lw + step[:, None] * delta)
-        return P.effective_sample_size(w)
-
-    room = 1.0 - lam
-    full = ess(room) >= ess_target
-    lo = np.zeros_like(lam)
-    hi = room.copy()
-    for _ in range(30):
-        mid = 0.5 * (lo + hi)
-        ok = ess(mid) >= ess_target
-        lo = np.where(ok, mid, lo)
-        hi = np.where(ok, hi, mid)
-    step = np.where(full, room, np.maximum(lo, 1e-6 * room))
-    return np.where(lam >= 1.0, 1.0, np.minimum(lam + step, 1.0))
+    (30 bisections on the step, in :func:`~phyloc.localization._kernels.next_lambda_kernel`)."""
+    out = np.empty(lam.shape)
+    K.next_lambda_kernel(
+        np.ascontiguousarray(lw, dtype=np.float64),
+        np.ascontiguousarray(delta, dtype=np.float64),
+        np.ascontiguousarray(lam, dtype=np.float64),
+        float(ess_target),
+        30,
+        out,
+    )
+    return out
 
 
 def predict(
