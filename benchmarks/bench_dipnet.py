@@ -5,12 +5,18 @@ mixture, accumulate). Figures (names are the interface):
 
 ``dipnet.env.evals_per_s_per_core``       DiPNet eq. (25) kernel (cubic interpolation), 1 thread
 ``dipnet.marginal.evals_per_s_per_core``  phyloc's marginal EL kernel, 1 thread
+``dipnet.marginal_tabulated.evals_per_s_per_core``  the same read from its per-link tables
+                                          (what the safeguarded filter evaluates between
+                                          message exchanges; table built once), 1 thread
+``dipnet.marginal_tabulated.speedup``     over the exact marginal EL kernel
 ``dipnet.gauss.evals_per_s_per_core``     two-step Gaussian ERV kernel, 1 thread
 ``dipnet.env.numpy_evals_per_s``          the NumPy twin of the DiPNet eq. (25) kernel
 ``dipnet.env.speedup_vs_numpy``           (the twin is ``tests/naive_direct.py``; without a
                                           source checkout both are omitted: ``MISSING``)
 ``dipnet.agent_iteration_s``              safeguarded DiPNet, Q = 1000, |V_u| = 29 (30 agents)
 ``dipnet_published.agent_iteration_s``    DiPNet Algorithm 1 as published, same network
+``dipnet.c2.agent_iteration_s``           safeguarded DiPNet on a WINNER II C2 network (multipath:
+                                          several peaks per link), Q = 1000, |V_u| = 29
 ``dipnet.scaling_exponent_q``             d log(time) / d log(Q) of one likelihood sweep
 ``dipnet.scaling_exponent_links``         d log(time) / d log(|V_u|)   (DiPNet Table I: both 1)
 
@@ -41,6 +47,8 @@ correlation tables; ``timing.per_agent_iteration_s`` is the figure.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numba
 import numpy as np
@@ -119,6 +127,13 @@ def _sweep_rate(lik, X, pos, covs, repeat):
     return lik.csr.rx.size * X.shape[1] / t, t
 
 
+def _agent_iteration(name, meas, prior, quick):
+    """Seconds per agent-iteration of the registered method ``name`` (its own timing)."""
+    method = METHODS[name]
+    opts = method.make_options({"n_iterations": 4 if quick else 8})
+    return method.run(meas, prior, np.random.default_rng(1), opts).timing.per_agent_iteration_s
+
+
 def _slope(x, t):
     return float(np.polyfit(np.log(x), np.log(t), 1)[0])
 
@@ -134,6 +149,16 @@ def report(quick: bool = False) -> dict[str, float]:
         numba.set_num_threads(1)
         for kind, lik in liks.items():
             fig[f"dipnet.{kind}.evals_per_s_per_core"] = _sweep_rate(lik, X, pos, covs, repeat)[0]
+        marg = liks["marginal"]
+        tabulated = marg.frozen(X, pos, covs)
+        t_tab = best_seconds(lambda: tabulated(X), repeat=repeat)
+        fig["dipnet.marginal_tabulated.evals_per_s_per_core"] = (
+            marg.csr.rx.size * X.shape[1] / t_tab
+        )
+        fig["dipnet.marginal_tabulated.speedup"] = (
+            fig["dipnet.marginal_tabulated.evals_per_s_per_core"]
+            / fig["dipnet.marginal.evals_per_s_per_core"]
+        )
     finally:
         numba.set_num_threads(before)
     twin = naive("naive_direct")
@@ -171,10 +196,17 @@ def report(quick: bool = False) -> dict[str, float]:
         tables=(liks["env"].table,),
     )
     for name in ("dipnet", "dipnet_published"):
-        method = METHODS[name]
-        opts = method.make_options({"n_iterations": 4 if quick else 8})
-        res = method.run(meas, prior, np.random.default_rng(1), opts)
-        fig[f"{name}.agent_iteration_s"] = res.timing.per_agent_iteration_s
+        fig[f"{name}.agent_iteration_s"] = _agent_iteration(name, meas, prior, quick)
+    real_c2, liks_c2, rng_c2 = make_network(scenario="winner2_c2")
+    pos_c2, centers_c2, X_c2, _ = _state(real_c2, 1000, rng_c2)
+    meas_c2 = dataclasses.replace(
+        meas,
+        anchor_positions=pos_c2[net.anchor_index][None],
+        links=(real_c2.links[0],),
+        tables=(liks_c2["env"].table,),
+    )
+    prior_c2 = Prior(X_c2, lambda x: gaussian_log_prior(x, centers_c2, 5.0), "informed start")
+    fig["dipnet.c2.agent_iteration_s"] = _agent_iteration("dipnet", meas_c2, prior_c2, quick)
     qs = [250, 500, 1000, 2000] if quick else [250, 500, 1000, 2000, 4000]
     tq = [
         _sweep_rate(liks["env"], gaussian_priors(centers, 5.0, q, rng), pos, covs, repeat)[1]
@@ -201,6 +233,11 @@ def summarize(fig: dict) -> str:
     rows = [
         ("DiPNet eq. (25) kernel (ENV, cubic)", fig["dipnet.env.evals_per_s_per_core"], ratio),
         ("marginal EL kernel", fig["dipnet.marginal.evals_per_s_per_core"], ""),
+        (
+            "marginal EL, tabulated links",
+            fig["dipnet.marginal_tabulated.evals_per_s_per_core"],
+            f"{fig['dipnet.marginal_tabulated.speedup']:.1f}x exact",
+        ),
         ("Gaussian ERV kernel", fig["dipnet.gauss.evals_per_s_per_core"], ""),
         (
             "DiPNet eq. (25) NumPy twin",
@@ -212,6 +249,7 @@ def summarize(fig: dict) -> str:
     rows2 = [
         ("dipnet (safeguarded)", 1e3 * fig["dipnet.agent_iteration_s"]),
         ("dipnet_published", 1e3 * fig["dipnet_published.agent_iteration_s"]),
+        ("dipnet (safeguarded), WINNER II C2", 1e3 * fig["dipnet.c2.agent_iteration_s"]),
     ]
     t2 = format_table(rows2, ["Q = 1000, |V_u| = 29", "ms per agent-iteration"])
     t3 = (

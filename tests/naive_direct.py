@@ -212,3 +212,118 @@ def next_lambda_numpy(lw, delta, lam, ess_target, n_bisect=30):
         hi = np.where(ok, hi, mid)
     step = np.where(full, room, np.maximum(lo, 1e-6 * room))
     return np.where(lam >= 1.0, 1.0, np.minimum(lam + step, 1.0))
+
+
+def _link_mixture_numpy(x, j, pk_off, pk_d, pk_h, pk_c, s2, floor):
+    """The smoothed log-likelihood of link ``j`` at distances ``x`` (no tempering), by
+    logsumexp over the floor and every component."""
+    from scipy.special import logsumexp
+
+    x = np.asarray(x, dtype=np.float64)
+    sl = slice(pk_off[j], pk_off[j + 1])
+    v = 1.0 / pk_c[sl] + s2[j]
+    terms = (pk_h[sl] - 0.5 * np.log1p(pk_c[sl] * s2[j])) - 0.5 * (x[..., None] - pk_d[sl]) ** 2 / v
+    allc = np.concatenate([np.full((*x.shape, 1), floor[j]), terms], axis=-1)
+    return logsumexp(allc, axis=-1)
+
+
+def mixture_grid_numpy(
+    particles,
+    offsets,
+    nb_node,
+    pk_off,
+    pk_h,
+    pk_c,
+    s2,
+    floor,
+    ways,
+    centers,
+    resolution,
+    max_points,
+    margin,
+):
+    """Twin of ``mixture_grid_kernel``: per link ``(lo, inv_h, count)``, ``count = 0`` for no
+    table."""
+    n_links = pk_off.size - 1
+    lo, inv_h = np.zeros(n_links), np.zeros(n_links)
+    count = np.zeros(n_links, np.int64)
+    for a in range(offsets.size - 1):
+        for j in range(offsets[a], offsets[a + 1]):
+            sl = slice(pk_off[j], pk_off[j + 1])
+            base = pk_h[sl] - 0.5 * np.log1p(pk_c[sl] * s2[j])
+            hp = 0.5 / (1.0 / pk_c[sl] + s2[j])
+            kept = base >= floor[j] - 37.0
+            if not kept.any():
+                continue
+            steep = np.max(np.sqrt(hp[kept] * np.maximum(base[kept] - floor[j], 1.0)))
+            x = ways * np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
+            if x.size == 0:
+                continue
+            h = resolution / steep
+            wide = margin * (x.max() - x.min()) + 2.0 * h
+            x_lo = max(x.min() - wide, 0.0)
+            m = int(np.ceil((x.max() + wide - x_lo) / h)) + 1
+            if 4 <= m <= max_points:
+                lo[j], inv_h[j], count[j] = x_lo, 1.0 / h, m
+    return lo, inv_h, count
+
+
+def mixture_table_numpy(pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count):
+    """Twin of ``mixture_table_kernel``: the grids, concatenated in link order."""
+    parts = [
+        _link_mixture_numpy(
+            lo[j] + np.arange(count[j]) / inv_h[j], j, pk_off, pk_d, pk_h, pk_c, s2, floor
+        )
+        for j in range(count.size)
+        if count[j] > 0
+    ]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def mixture_tabulated_numpy(
+    particles,
+    agents,
+    offsets,
+    nb_node,
+    pk_off,
+    pk_d,
+    pk_h,
+    pk_c,
+    s2,
+    floor,
+    ways,
+    gamma,
+    centers,
+    lo,
+    inv_h,
+    count,
+    table,
+):
+    """Twin of ``mixture_tabulated_kernel``: 4-point Lagrange interpolation inside each
+    link's grid, the exact mixture outside."""
+    t_off = np.concatenate([[0], np.cumsum(count)[:-1]])
+    out = np.zeros(particles.shape[:2])
+    for r, a in enumerate(agents):
+        for j in range(offsets[a], offsets[a + 1]):
+            x = ways * np.linalg.norm(particles[r] - centers[nb_node[j]], axis=1)
+            val = _link_mixture_numpy(x, j, pk_off, pk_d, pk_h, pk_c, s2, floor)
+            m = count[j]
+            if m > 0:
+                u = (x - lo[j]) * inv_h[j]
+                inside = (u >= 1.0) & (u < m - 2.0)
+                i = u[inside].astype(np.int64)
+                f = u[inside] - i
+                y = table[t_off[j] : t_off[j] + m]
+                # Lagrange weights of the nodes i−1, i, i+1, i+2 at i + f
+                w = np.stack(
+                    [
+                        -f * (f - 1) * (f - 2) / 6,
+                        (f + 1) * (f - 1) * (f - 2) / 2,
+                        -(f + 1) * f * (f - 2) / 2,
+                        (f + 1) * f * (f - 1) / 6,
+                    ]
+                )
+                nodes = np.stack([y[i - 1], y[i], y[i + 1], y[i + 2]])
+                val[inside] = np.sum(w * nodes, axis=0)
+            out[r] += gamma * val
+    return out

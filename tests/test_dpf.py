@@ -8,7 +8,10 @@ import pytest
 from naive_direct import (
     direct_loglik_numpy,
     gauss_loglik_numpy,
+    mixture_grid_numpy,
     mixture_loglik_numpy,
+    mixture_table_numpy,
+    mixture_tabulated_numpy,
     next_lambda_numpy,
     systematic_resample_numpy,
 )
@@ -289,6 +292,165 @@ def test_mixture_kernel_matches_numpy_twin(rng):
     )
     np.testing.assert_allclose(out, ref, rtol=1e-10)
     assert np.all(out >= 0)  # the floor: exp(ℓ) >= 1
+
+
+def random_mixture(rng, n_agents=3, n_centers=7, dim=2):
+    """Links with 0–6 peaks: sharp (c up to 30 m⁻²) and strong (h up to 400 nats), broad,
+    and one link with only the floor; floors 0 (``outlier_nats = inf``) and higher."""
+    centers = rng.uniform(0, 100, (n_centers, dim))
+    n_links_per = rng.integers(2, 5, n_agents)
+    offsets = np.concatenate([[0], np.cumsum(n_links_per)])
+    n_links = offsets[-1]
+    nb = rng.integers(n_agents, n_centers, n_links)
+    n_pk = rng.integers(1, 7, n_links)
+    n_pk[1] = 0
+    pk_off = np.concatenate([[0], np.cumsum(n_pk)])
+    d_true = np.linalg.norm(
+        centers[nb] - centers[np.repeat(np.arange(n_agents), n_links_per)], axis=1
+    )
+    pk_d = np.repeat(2.0 * d_true, n_pk) + rng.uniform(0, 20, n_pk.sum())
+    pk_h = rng.uniform(5, 400, n_pk.sum())
+    pk_c = 10 ** rng.uniform(-1, 1.5, n_pk.sum())
+    s2 = rng.choice([0.0, 0.3, 4.0], n_links)
+    floor = np.where(rng.random(n_links) < 0.5, 0.0, rng.uniform(1, 300, n_links))
+    return centers, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor
+
+
+def test_tabulated_mixture_kernels_match_their_twins(rng):
+    """Grid, table and interpolation kernels against the NumPy twins, on an agent subset."""
+    from phyloc.localization.likelihoods import TABLE_MARGIN, TABLE_MAX_POINTS, TABLE_RESOLUTION
+
+    for _trial in range(5):
+        centers, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor = random_mixture(rng)
+        X = centers[:3, None, :] + rng.normal(0, 4.0, (3, 60, 2))
+        grid_args = (X, offsets, nb, pk_off, pk_h, pk_c, s2, floor, 2.0, centers)
+        consts = (TABLE_RESOLUTION, TABLE_MAX_POINTS, TABLE_MARGIN)
+        n_links = nb.size
+        lo, inv_h, count = np.zeros(n_links), np.zeros(n_links), np.zeros(n_links, np.int64)
+        K.mixture_grid_kernel(*grid_args, *consts, lo, inv_h, count)
+        ref = mixture_grid_numpy(*grid_args, *consts)
+        np.testing.assert_array_equal(count, ref[2])
+        np.testing.assert_allclose(lo, ref[0], rtol=1e-12)
+        np.testing.assert_allclose(inv_h, ref[1], rtol=1e-12)
+        assert count.sum() > 0
+        t_off = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+        table = np.empty(count.sum())
+        K.mixture_table_kernel(
+            offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, table
+        )
+        ref_table = mixture_table_numpy(pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count)
+        np.testing.assert_allclose(table, ref_table, rtol=1e-10, atol=1e-12)
+        agents = np.array([2, 0])
+        Y = X[agents] + rng.normal(0, 1.0, (2, 60, 2))
+        Y[0, :5] += 300.0  # beyond every grid: evaluated exactly
+        out = np.empty((2, 60))
+        tail = (2.0, 0.7, centers, lo, inv_h, count)
+        K.mixture_tabulated_kernel(
+            Y, agents, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, *tail, t_off, table, out
+        )
+        twin = mixture_tabulated_numpy(
+            Y, agents, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, *tail, table
+        )
+        np.testing.assert_allclose(out, twin, rtol=1e-10, atol=1e-9)
+
+
+def test_tabulated_mixture_is_within_a_millinat_of_the_exact_one(rng):
+    """The interpolated log-likelihood (the DPF's frozen likelihood) against the exact
+    mixture: at most 1e-3 nats per link anywhere, exact outside the grids."""
+    from phyloc.localization.likelihoods import TABLE_MARGIN, TABLE_MAX_POINTS, TABLE_RESOLUTION
+
+    worst = 0.0
+    for _trial in range(20):
+        centers, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor = random_mixture(rng)
+        spread = rng.choice([0.5, 5.0, 30.0])
+        X = centers[:3, None, :] + rng.normal(0, spread, (3, 400, 2))
+        n_links = nb.size
+        lo, inv_h, count = np.zeros(n_links), np.zeros(n_links), np.zeros(n_links, np.int64)
+        K.mixture_grid_kernel(
+            X,
+            offsets,
+            nb,
+            pk_off,
+            pk_h,
+            pk_c,
+            s2,
+            floor,
+            2.0,
+            centers,
+            TABLE_RESOLUTION,
+            TABLE_MAX_POINTS,
+            TABLE_MARGIN,
+            lo,
+            inv_h,
+            count,
+        )
+        t_off = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
+        table = np.empty(count.sum())
+        K.mixture_table_kernel(
+            offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, table
+        )
+        agents = np.arange(3)
+        out = np.empty((3, 400))
+        K.mixture_tabulated_kernel(
+            X,
+            agents,
+            offsets,
+            nb,
+            pk_off,
+            pk_d,
+            pk_h,
+            pk_c,
+            s2,
+            floor,
+            2.0,
+            1.0,
+            centers,
+            lo,
+            inv_h,
+            count,
+            t_off,
+            table,
+            out,
+        )
+        exact = mixture_loglik_numpy(
+            X, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, 2.0, 1.0, centers
+        )
+        err = np.abs(out - exact) / np.diff(offsets)[:, None]
+        worst = max(worst, err.max())
+    assert worst <= 1e-3
+
+
+def test_frozen_likelihood_equals_the_marginal_one():
+    """MarginalDirectLikelihood.frozen: the tabulated function the DPF steps with agrees with
+    loglik, a subset of agents gives the same rows, and coincident nodes stay finite."""
+    from phyloc.localization.likelihoods import MarginalDirectLikelihood
+
+    rng = np.random.default_rng(17)
+    pos = np.vstack([rng.uniform(20, 80, (3, 2)), ANCHORS])
+    is_anchor = np.array([False] * 3 + [True] * 4)
+    links = np.array([[a, b] for a in range(3) for b in range(7) if a != b])
+    tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=30.0)
+    amap = agent_map(is_anchor)
+    covs = np.zeros((7, 2, 2))
+    covs[:3] = 4.0 * np.eye(2)
+    lik = MarginalDirectLikelihood(tab, links, amap, 1)
+    X = pos[:3, None, :] + rng.normal(0, 3.0, (3, 500, 2))
+    X[1, 0] = pos[4]  # a particle on an anchor: distance 0
+    X[2, 1] = pos[0]  # and on a neighbour's centre
+    fn = lik.frozen(X, pos, covs, gamma=0.6)
+    assert fn.table_points > 0
+    got = fn(X)
+    exact = lik.loglik(X, pos, covs, gamma=0.6)
+    assert np.all(np.isfinite(got))
+    np.testing.assert_allclose(got, exact, rtol=0, atol=0.6 * 6 * 1e-3)
+    sub = fn(X[[2, 0]], agents=[2, 0])
+    np.testing.assert_array_equal(sub, got[[2, 0]])
+    same = np.repeat(X[:, :1], 50, axis=1)  # every particle at one point: a one-point range
+    np.testing.assert_allclose(
+        lik.frozen(same, pos, covs)(same), lik.loglik(same, pos, covs), atol=6e-3
+    )
+    off = MarginalDirectLikelihood(tab, links, amap, 1, tabulate=False)
+    assert off.frozen(X, pos, covs) is None
 
 
 def test_marginal_likelihood_is_the_convolution_of_the_exact_one(rng):

@@ -202,6 +202,9 @@ def test_table1_section_figures_and_summary(monkeypatch):
         for k in (
             "env.evals_per_s_per_core",
             "marginal.evals_per_s_per_core",
+            "marginal_tabulated.evals_per_s_per_core",
+            "marginal_tabulated.speedup",
+            "c2.agent_iteration_s",
             "gauss.evals_per_s_per_core",
             "env.numpy_evals_per_s",
             "env.speedup_vs_numpy",

@@ -44,6 +44,15 @@ agent and snapshot),
 ``<method>.<token>.agents_<n>.shape_difference_m`` (DiPNet eq. (1)),
 ``<method>.<token>.agents_<n>.ess_min`` (smallest effective sample size of any agent in any
 iteration, mean over runs),
+``<method>.<token>.agents_<n>.framework_rmse_observable_m`` (DiPNet eq. (4) over the *observable*
+pairs only: those whose distance the detected links determine, :func:`observable_pairs`),
+``<token>.agents_<n>.unobservable_pair_fraction`` (the share of pairs left out there: no method,
+the oracle included, can estimate them),
+``<method>.<token>.agents_<n>.nees`` (normalized estimation error squared ``eᵀP⁻¹e`` of the
+published covariance, per agent after rigid alignment, mean over agents and realizations:
+``dim`` when calibrated) and ``.error_to_belief_ratio`` ``= sqrt(nees/dim)`` (> 1: overconfident;
+``.error_to_belief_ratio_median`` the same from the median NEES over the median of χ²_dim, robust
+to a few lost agents),
 ``<method>.runtime_per_agent_iteration_s``, ``<s>.link_bias.<los|nlos>_mean_m`` (correlation-peak
 range bias, pooled over snapshots). Series: error CDFs at ``experiment.cdf_agents``, per
 iteration at the largest network (snapshot 0): mean ESS, published std ``sqrt(tr C/dim)`` and
@@ -71,7 +80,7 @@ from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict, scenario_specs
-from phyloc.evaluation.metrics import framework_distance_errors, shape_difference
+from phyloc.evaluation.metrics import framework_distance_errors, rigid_align, shape_difference
 from phyloc.evaluation.ranging_experiment import RangingSpec
 from phyloc.localization import METHODS as REGISTRY
 from phyloc.localization import (
@@ -87,6 +96,7 @@ from phyloc.localization import (
     informed_centers,
 )
 from phyloc.network import NetworkSpec
+from phyloc.network.rigidity import determined_pairs
 from phyloc.parallel import run_tasks
 from phyloc.phy.correlation import correlation_tables
 from phyloc.ranging import estimate
@@ -335,6 +345,13 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particl
         ),
         "link_valid_corr": np.concatenate([e.valid for e in ests["corr"]]),
         "los": np.concatenate([np.asarray(d.los, bool) for d in real.channels]),
+        "observable": np.concatenate(
+            [
+                observable_pairs(net, t, lk, e.valid, np.random.default_rng(streams[0]))
+                for t, (e, lk) in enumerate(zip(ests["corr"], real.links, strict=True))
+            ]
+        ),
+        "dim": net.dim,
     }
     s = 2
     for init in inits:
@@ -352,6 +369,45 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particl
                 opts = dataclasses.replace(opts, keep_particles=tuple(keep_particles))
             res = REGISTRY[name].run(meas, priors[Q], rng_m, opts)
             out.update(_run_outputs(f"{label}|{init}", res, meas, net.positions))
+    return out
+
+
+def observable_pairs(net, t, links, detected, rng) -> np.ndarray:
+    """Which framework distances of snapshot ``t`` its detected ``links`` determine.
+
+    A pair of nodes is *linked* when a link between them (either direction) passes the
+    correlation-peak detection test (``detected``, the ``valid`` flags of the ``"corr"``
+    ranges: measurements only, no truth). A framework distance is *observable* when the linked
+    pairs fix it (generic infinitesimal rigidity, anchors fixed:
+    :func:`~phyloc.network.rigidity.determined_pairs`). Returns a flag per pair of
+    :func:`~phyloc.evaluation.metrics.framework_distance_errors` (same order)."""
+    pos = net.positions[t]
+    _, pairs = framework_distance_errors(pos, pos, net.is_anchor, return_pairs=True)
+    edges = np.asarray(links)[np.asarray(detected, bool)]
+    return determined_pairs(net.n_nodes, edges, pairs, net.dim, rng, fixed=net.is_anchor)
+
+
+_CHI2_MEDIAN = {1: 0.454936423119573, 2: 2.0 * math.log(2.0), 3: 2.365973884375338}
+"""Median of the χ² distribution with 1, 2, 3 degrees of freedom (NEES of a calibrated belief)."""
+
+
+def _nees(estimates, covariances, truth, is_anchor):
+    """NEES ``eᵀP⁻¹e`` per agent of one snapshot, after the rigid alignment of DiPNet eq. (3)
+    (the error of an anchor-free framework is defined up to a rigid motion; the covariance
+    rotates with it). NaN for a singular or missing covariance."""
+    R, _, aligned = rigid_align(estimates, truth, is_anchor=is_anchor, missing="exclude")
+    agents = np.flatnonzero(~np.asarray(is_anchor, bool))
+    out = np.full(agents.size, np.nan)
+    if covariances is None:
+        return out
+    for i, u in enumerate(agents):
+        P = R @ covariances[i] @ R.T
+        e = aligned[u] - truth[u]
+        try:
+            val = float(e @ np.linalg.solve(P, e))
+        except np.linalg.LinAlgError:
+            continue
+        out[i] = val if np.isfinite(val) and val >= 0 else np.nan
     return out
 
 
@@ -382,6 +438,12 @@ def _run_outputs(key, res, meas, truth):
             [shape_difference(_nodes(mk, meas, agents), truth[0], is_anchor) for mk in history]
         )
         / math.sqrt(dim),
+        key + "|nees": _nees(
+            est0,
+            None if res.covariances is None else np.asarray(res.covariances[0]),
+            truth[0],
+            is_anchor,
+        ),
         key + "|sec_per_agent_it": res.timing.per_agent_iteration_s,
         key + "|agent_snapshot_s": float(np.mean(res.timing.agent_s)),
         key + "|particles_at": {
@@ -490,6 +552,15 @@ def _aggregate(keys, results, exp, tokens):
             figures[f"{tok}.link_bias.{cond}_mean_m"] = (
                 float(le[sel].mean()) if sel.any() else float("nan")
             )
+        for n in exp.agents:
+            obs = np.concatenate(
+                [
+                    r["observable"]
+                    for (t, nn, _), r in zip(keys, results, strict=True)
+                    if t == tok and nn == n
+                ]
+            )
+            figures[f"{tok}.agents_{n}.unobservable_pair_fraction"] = float(1.0 - obs.mean())
         for init in exp.inits:
             tag = tok + INITS[init]
             for m in exp.methods:
@@ -501,8 +572,24 @@ def _aggregate(keys, results, exp, tokens):
                         if t == tok and nn == n
                     ]
                     err = np.concatenate([r[key + "|err"] for r in runs])
+                    obs = np.concatenate([r["observable"] for r in runs])
                     base = f"{m}.{tag}.agents_{n}"
                     figures[base + ".framework_rmse_m"] = float(math.sqrt(np.mean(err**2)))
+                    figures[base + ".framework_rmse_observable_m"] = (
+                        float(math.sqrt(np.mean(err[obs] ** 2))) if obs.any() else float("nan")
+                    )
+                    dim = runs[0]["dim"]
+                    nees = np.concatenate([r[key + "|nees"] for r in runs])
+                    nees = nees[np.isfinite(nees)]
+                    figures[base + ".nees"] = float(nees.mean()) if nees.size else float("nan")
+                    figures[base + ".error_to_belief_ratio"] = (
+                        float(math.sqrt(nees.mean() / dim)) if nees.size else float("nan")
+                    )
+                    figures[base + ".error_to_belief_ratio_median"] = (
+                        float(math.sqrt(np.median(nees) / _CHI2_MEDIAN[dim]))
+                        if nees.size
+                        else float("nan")
+                    )
                     figures[base + ".shape_difference_m"] = float(
                         math.sqrt(np.mean([r[key + "|shape"] ** 2 for r in runs]))
                     )
@@ -618,6 +705,25 @@ def summary_lines(results: dict):
                 if _reads_tables(m)
             )
             out.append(f"{tag}, {n} agents, smallest ESS: {ess} (of {meta['n_particles']})")
+            ratio = ", ".join(
+                f"{m} {f.get(f'{m}.{tag}.agents_{n}.error_to_belief_ratio', math.nan):.2f}"
+                f" ({f.get(f'{m}.{tag}.agents_{n}.error_to_belief_ratio_median', math.nan):.2f})"
+                for m in meta["methods"]
+            )
+            out.append(
+                f"{tag}, {n} agents, error/belief ratio sqrt(NEES/dim) (from the median): {ratio}"
+            )
+        for k in meta["agents"]:
+            frac = f.get(f"{tok}.agents_{k}.unobservable_pair_fraction", 0.0)
+            if frac > 0:
+                obs = ", ".join(
+                    f"{m} {f[f'{m}.{tok}.agents_{k}.framework_rmse_observable_m']:.3g}"
+                    for m in meta["methods"]
+                )
+                out.append(
+                    f"{tok}, {k} agents: {100 * frac:.1f} % of the pairs unobservable "
+                    f"(no detected links fix them); RMSE over the rest [m]: {obs}"
+                )
     rt = ", ".join(
         f"{m} {1e6 * f[f'{m}.runtime_per_agent_iteration_s']:.0f} µs" for m in meta["methods"]
     )

@@ -327,6 +327,55 @@ def sampled_mixture_kernel(
 # ---------------------------------------------------------------------------------------------
 # Marginal (peak-mixture) equivalent likelihood
 # ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _mixture_link_setup(j, pk_off, pk_h, pk_c, s2, floor, base, half_prec, reach2, keep):
+    """Per link ``j``: the smoothed components ``base_i − half_prec_i·t²`` that can matter.
+
+    A component below ``floor_j − 37`` nats everywhere changes ``e^{floor} + Σ`` by less than
+    half an ulp and is left out; the others are kept with the squared distance ``reach2``
+    beyond which they drop below that level. Returns the number kept (in ``keep``).
+    """
+    p0 = pk_off[j]
+    fl = floor[j]
+    n = 0
+    for i in range(pk_off[j + 1] - p0):
+        ci = pk_c[p0 + i]
+        b = pk_h[p0 + i] - 0.5 * np.log1p(ci * s2[j])
+        if b < fl - _NEGLIGIBLE_NATS:
+            continue
+        hp = 0.5 / (1.0 / ci + s2[j])
+        base[n] = b
+        half_prec[n] = hp
+        reach2[n] = (b - fl + _NEGLIGIBLE_NATS) / hp
+        keep[n] = p0 + i
+        n += 1
+    return n
+
+
+@njit(cache=True)
+def _mixture_eval(x, fl, n, keep, pk_d, base, half_prec, reach2):
+    """``log(e^{fl} + Σ_i exp(base_i − half_prec_i (x − d_i)²))`` over the kept components,
+    in one pass (running maximum); components beyond their reach add nothing."""
+    best = fl
+    tot = 1.0
+    for i in range(n):
+        t = x - pk_d[keep[i]]
+        t2 = t * t
+        if t2 < reach2[i]:
+            e = base[i] - half_prec[i] * t2
+            if e > best:
+                tot = tot * np.exp(best - e) + 1.0
+                best = e
+            else:
+                tot += np.exp(e - best)
+    if tot == 1.0:
+        return best
+    return best + np.log(tot)
+
+
+_NEGLIGIBLE_NATS = 37.0  # e^-37 < 2^-53: below half an ulp of a sum >= 1
+
+
 @njit(cache=True, parallel=True)
 def mixture_loglik_kernel(
     particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, floor, ways, gamma, centers, out
@@ -339,7 +388,9 @@ def mixture_loglik_kernel(
     ``N(0, s²)`` along the distance axis (exact for each Gaussian component):
     ``log(e^{floor} + Σ_i exp(h_i − ½log(1 + c_i s²) − (x − d_i)²/(2(1/c_i + s²))))``.
     ``floor_j = 0`` is the exact floor (``ℓ >= 0``); a higher floor bounds the evidence a
-    single link can contribute (robustness to NLOS peaks).
+    single link can contribute (robustness to NLOS peaks). Components more than 37 nats
+    below the floor at ``x`` are skipped (they cannot change the sum in double precision),
+    so a particle pays one exponential per peak within reach, not per peak of the link.
     """
     n_agents, Q, dim = particles.shape
     max_p = 1
@@ -348,34 +399,203 @@ def mixture_loglik_kernel(
     for a in prange(n_agents):
         base = np.empty(max_p)
         half_prec = np.empty(max_p)
+        reach2 = np.empty(max_p)
+        keep = np.empty(max_p, np.int64)
         for q in range(Q):
             out[a, q] = 0.0
         for j in range(offsets[a], offsets[a + 1]):
             c = centers[nb_node[j]]
-            p0 = pk_off[j]
-            n_p = pk_off[j + 1] - p0
-            for i in range(n_p):
-                ci = pk_c[p0 + i]
-                base[i] = pk_h[p0 + i] - 0.5 * np.log1p(ci * s2[j])
-                half_prec[i] = 0.5 / (1.0 / ci + s2[j])
+            n = _mixture_link_setup(j, pk_off, pk_h, pk_c, s2, floor, base, half_prec, reach2, keep)
+            fl = floor[j]
             for q in range(Q):
                 acc = 0.0
                 for k in range(dim):
                     t = particles[a, q, k] - c[k]
                     acc += t * t
                 x = ways * np.sqrt(acc)
-                fl = floor[j]
-                best = fl
-                for i in range(n_p):
-                    t = x - pk_d[p0 + i]
-                    e = base[i] - half_prec[i] * t * t
-                    if e > best:
-                        best = e
-                tot = np.exp(fl - best)
-                for i in range(n_p):
-                    t = x - pk_d[p0 + i]
-                    tot += np.exp(base[i] - half_prec[i] * t * t - best)
-                out[a, q] += gamma * (best + np.log(tot))
+                out[a, q] += gamma * _mixture_eval(x, fl, n, keep, pk_d, base, half_prec, reach2)
+
+
+@njit(cache=True, parallel=True)
+def mixture_grid_kernel(
+    particles,
+    offsets,
+    nb_node,
+    pk_off,
+    pk_h,
+    pk_c,
+    s2,
+    floor,
+    ways,
+    centers,
+    resolution,
+    max_points,
+    margin,
+    lo,
+    inv_h,
+    count,
+):
+    """Grid of each link's smoothed log-likelihood (see ``mixture_loglik_kernel``) along the
+    distance: ``lo[j]``, spacing ``1/inv_h[j]``, ``count[j]`` points (0: no table).
+
+    The grid covers the distances ``ways·‖x_{a,q} − c_j‖`` of the agent's particles, widened by
+    ``margin`` of their spread and two cells each side. Its spacing resolves the steepest
+    transition of the log-sum: ``h = resolution / max_i √(hp_i·max(base_i − floor_j, 1))``
+    (a component's slope where it crosses the floor is ``2√(hp·(base − floor))``). A link
+    that needs more than ``max_points`` gets no table (``count = 0``).
+    """
+    n_agents, Q, dim = particles.shape
+    max_p = 1
+    for j in range(pk_off.size - 1):
+        max_p = max(max_p, pk_off[j + 1] - pk_off[j])
+    for a in prange(n_agents):
+        base = np.empty(max_p)
+        half_prec = np.empty(max_p)
+        reach2 = np.empty(max_p)
+        keep = np.empty(max_p, np.int64)
+        for j in range(offsets[a], offsets[a + 1]):
+            c = centers[nb_node[j]]
+            n = _mixture_link_setup(j, pk_off, pk_h, pk_c, s2, floor, base, half_prec, reach2, keep)
+            steep = 0.0
+            for i in range(n):
+                steep = max(steep, np.sqrt(half_prec[i] * max(base[i] - floor[j], 1.0)))
+            x_lo = np.inf
+            x_hi = -np.inf
+            for q in range(Q):
+                acc = 0.0
+                for k in range(dim):
+                    t = particles[a, q, k] - c[k]
+                    acc += t * t
+                x = ways * np.sqrt(acc)
+                x_lo = min(x_lo, x)
+                x_hi = max(x_hi, x)
+            count[j] = 0
+            lo[j] = 0.0
+            inv_h[j] = 0.0
+            if not (x_hi >= x_lo) or n == 0:
+                continue  # no particles, or only the floor (no table needed: constant)
+            h = resolution / steep
+            wide = margin * (x_hi - x_lo) + 2.0 * h
+            x_lo = max(x_lo - wide, 0.0)
+            x_hi = x_hi + wide
+            m = int(np.ceil((x_hi - x_lo) / h)) + 1
+            if m < 4 or m > max_points:
+                continue
+            lo[j] = x_lo
+            inv_h[j] = 1.0 / h
+            count[j] = m
+
+
+@njit(cache=True, parallel=True)
+def mixture_table_kernel(
+    offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, out
+):
+    """Fill the grids of ``mixture_grid_kernel``: ``out[t_off[j] + i]`` = the smoothed
+    log-likelihood of link ``j`` at distance ``lo[j] + i/inv_h[j]`` (tempering not applied)."""
+    n_agents = offsets.size - 1
+    max_p = 1
+    for j in range(pk_off.size - 1):
+        max_p = max(max_p, pk_off[j + 1] - pk_off[j])
+    for a in prange(n_agents):
+        base = np.empty(max_p)
+        half_prec = np.empty(max_p)
+        reach2 = np.empty(max_p)
+        keep = np.empty(max_p, np.int64)
+        for j in range(offsets[a], offsets[a + 1]):
+            if count[j] == 0:
+                continue
+            n = _mixture_link_setup(j, pk_off, pk_h, pk_c, s2, floor, base, half_prec, reach2, keep)
+            h = 1.0 / inv_h[j]
+            for i in range(count[j]):
+                x = lo[j] + i * h
+                out[t_off[j] + i] = _mixture_eval(
+                    x, floor[j], n, keep, pk_d, base, half_prec, reach2
+                )
+
+
+@njit(cache=True)
+def _cubic4(y, i, f):
+    """4-point Lagrange interpolation of ``y`` at ``i + f`` from ``y[i−1 … i+2]``, f in [0, 1)."""
+    fm = f - 1.0
+    fp = f + 1.0
+    f2 = f - 2.0
+    return (
+        -f * fm * f2 * (1.0 / 6.0) * y[i - 1]
+        + fp * fm * f2 * 0.5 * y[i]
+        - fp * f * f2 * 0.5 * y[i + 1]
+        + fp * f * fm * (1.0 / 6.0) * y[i + 2]
+    )
+
+
+@njit(cache=True, parallel=True)
+def mixture_tabulated_kernel(
+    particles,
+    agents,
+    offsets,
+    nb_node,
+    pk_off,
+    pk_d,
+    pk_h,
+    pk_c,
+    s2,
+    floor,
+    ways,
+    gamma,
+    centers,
+    lo,
+    inv_h,
+    count,
+    t_off,
+    table,
+    out,
+):
+    """``mixture_loglik_kernel`` with each link's smoothed log-likelihood read from its grid
+    (4-point Lagrange, exact for the parabola of a lone component) where the distance lies
+    inside the grid, and evaluated exactly elsewhere (and on links without a grid).
+
+    Row ``r`` of ``particles`` and ``out`` belongs to agent ``agents[r]`` (a subset of the
+    agents may be evaluated).
+    """
+    n_rows, Q, dim = particles.shape
+    max_p = 1
+    for j in range(pk_off.size - 1):
+        max_p = max(max_p, pk_off[j + 1] - pk_off[j])
+    for r in prange(n_rows):
+        a = agents[r]
+        base = np.empty(max_p)
+        half_prec = np.empty(max_p)
+        reach2 = np.empty(max_p)
+        keep = np.empty(max_p, np.int64)
+        xs = np.empty(Q)
+        for q in range(Q):
+            out[r, q] = 0.0
+        for j in range(offsets[a], offsets[a + 1]):
+            c = centers[nb_node[j]]
+            n = _mixture_link_setup(j, pk_off, pk_h, pk_c, s2, floor, base, half_prec, reach2, keep)
+            fl = floor[j]
+            if n == 0:  # only the floor
+                for q in range(Q):
+                    out[r, q] += gamma * fl
+                continue
+            m = count[j]
+            x0 = lo[j]
+            ih = inv_h[j]
+            y = table[t_off[j] : t_off[j] + m]
+            for q in range(Q):  # distances first: a loop the compiler vectorizes
+                acc = 0.0
+                for k in range(dim):
+                    t = particles[r, q, k] - c[k]
+                    acc += t * t
+                xs[q] = ways * np.sqrt(acc)
+            top = m - 2.0  # i = int(u) <= m − 3
+            for q in range(Q):
+                u = (xs[q] - x0) * ih
+                if u >= 1.0 and u < top:
+                    i = int(u)
+                    val = _cubic4(y, i, u - i)
+                else:
+                    val = _mixture_eval(xs[q], fl, n, keep, pk_d, base, half_prec, reach2)
+                out[r, q] += gamma * val
 
 
 @njit(cache=True, parallel=True)

@@ -331,7 +331,10 @@ def run_dpf(
 
 def _frozen_loglik(likelihood, centers, covs, gamma, agent_nodes, X, lw):
     """The log-likelihood with the neighbours' beliefs of one iteration frozen: their moments,
-    or (a likelihood with ``exchange == "particles"``) their particle sets ``X``, ``lw``."""
+    or (a likelihood with ``exchange == "particles"``) their particle sets ``X``, ``lw``.
+
+    A likelihood with a ``frozen`` method builds the function itself (the marginal EL
+    tabulates each link once per iteration over the range the particles ``X`` cover)."""
     c, v = centers.copy(), covs.copy()
     if getattr(likelihood, "exchange", "moments") == "particles":
         beliefs = NodeBeliefs(c, agent_nodes, X, lw)
@@ -340,6 +343,10 @@ def _frozen_loglik(likelihood, centers, covs, gamma, agent_nodes, X, lw):
             return likelihood.loglik(x, c, v, gamma=gamma, beliefs=beliefs)
 
         return fn
+    if hasattr(likelihood, "frozen"):
+        tabulated = likelihood.frozen(X, c, v, gamma)
+        if tabulated is not None:
+            return tabulated
 
     def fn(x):
         return likelihood.loglik(x, c, v, gamma=gamma)

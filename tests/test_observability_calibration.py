@@ -1,0 +1,66 @@
+"""The localization experiment's observability rule and NEES calibration figures."""
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from phyloc.evaluation import localization_experiment as lx
+
+
+def _net(pos, is_anchor):
+    pos = np.asarray(pos, dtype=np.float64)
+    return SimpleNamespace(
+        positions=pos[None], is_anchor=np.asarray(is_anchor), n_nodes=len(pos), dim=pos.shape[1]
+    )
+
+
+def test_three_agents_with_one_silent_pair_leave_its_distance_out():
+    """The 3-agent C2 failure: the pair with no detected link (either direction) flexes."""
+    net = _net([[0.0, 0.0], [50.0, 0.0], [20.0, 40.0]], [False] * 3)
+    links = np.array([[0, 1], [1, 0], [0, 2], [2, 0], [1, 2], [2, 1]])
+    detected = np.array([True, False, False, False, False, True])  # 0-1 and 1-2 only
+    obs = lx.observable_pairs(net, 0, links, detected, np.random.default_rng(0))
+    # pairs in framework_distance_errors order: (0,1) (0,2) (1,0) (1,2) (2,0) (2,1)
+    assert obs.tolist() == [True, False, True, True, False, True]
+    every = lx.observable_pairs(net, 0, links, np.ones(6, bool), np.random.default_rng(0))
+    assert every.all()
+
+
+def test_nees_is_the_closed_form_with_anchors_and_averages_dim():
+    """Anchors fix the frame (no alignment residual): NEES = eᵀP⁻¹e exactly, and errors drawn
+    from P give a mean NEES of dim (a calibrated belief)."""
+    rng = np.random.default_rng(8)
+    n_ag = 4000
+    anchors = np.array([[0.0, 0.0], [100.0, 0.0], [0.0, 100.0], [100.0, 100.0]])
+    truth = np.vstack([rng.uniform(0, 100, (n_ag, 2)), anchors])
+    is_anchor = np.r_[np.zeros(n_ag, bool), np.ones(4, bool)]
+    A = rng.normal(0, 1.0, (n_ag, 2, 2))
+    P = A @ A.transpose(0, 2, 1) + 0.1 * np.eye(2)
+    e = np.einsum("nij,nj->ni", np.linalg.cholesky(P), rng.standard_normal((n_ag, 2)))
+    est = truth.copy()
+    est[:n_ag] += e
+    got = lx._nees(est, P, truth, is_anchor)
+    want = np.einsum("ni,ni->n", e, np.linalg.solve(P, e[..., None])[..., 0])
+    np.testing.assert_allclose(got, want, rtol=1e-9)
+    assert abs(got.mean() - 2.0) < 4 * 2.0 / np.sqrt(n_ag)  # χ²₂: mean 2, std 2
+
+
+def test_nees_is_invariant_to_the_anchor_free_gauge_and_survives_singular_beliefs():
+    """Rotating and shifting an anchor-free estimate (and its covariances) leaves the NEES
+    unchanged; a singular covariance gives NaN, not inf."""
+    rng = np.random.default_rng(2)
+    truth = rng.uniform(0, 50, (6, 2))
+    est = truth + rng.normal(0, 1.0, (6, 2))
+    P = np.repeat(np.eye(2)[None] * 0.5, 6, axis=0)
+    P[1] = np.diag([2.0, 0.3])
+    th = 0.7
+    R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    moved = est @ R.T + np.array([30.0, -12.0])
+    free = np.zeros(6, bool)
+    a = lx._nees(est, P, truth, free)
+    b = lx._nees(moved, R @ P @ R.T, truth, free)
+    np.testing.assert_allclose(a, b, rtol=1e-9)
+    P[2] = 0.0
+    c = lx._nees(est, P, truth, free)
+    assert np.isnan(c[2]) and np.all(np.isfinite(np.delete(c, 2)))
+    assert np.all(np.isnan(lx._nees(est, None, truth, free)))
