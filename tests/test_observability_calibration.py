@@ -64,3 +64,17 @@ def test_nees_is_invariant_to_the_anchor_free_gauge_and_survives_singular_belief
     c = lx._nees(est, P, truth, free)
     assert np.isnan(c[2]) and np.all(np.isfinite(np.delete(c, 2)))
     assert np.all(np.isnan(lx._nees(est, None, truth, free)))
+
+
+def test_truth_free_start_keys_are_validated():
+    import pytest
+
+    from phyloc.errors import ValidationError
+
+    spec = lx.LocalizationSpec.from_dict({"init_robust_scale_m": 0.0, "init_pair_range": "mean"})
+    assert spec.init_robust_scale_m == 0.0 and spec.options == {}  # not a method option
+    assert lx.LocalizationSpec().init_pair_range == "min"
+    with pytest.raises(ValidationError, match="init_pair_range"):
+        lx.LocalizationSpec.from_dict({"init_pair_range": "median"})
+    with pytest.raises(ValidationError, match="init_robust_scale_m"):
+        lx.LocalizationSpec.from_dict({"init_robust_scale_m": -2.0})

@@ -32,7 +32,9 @@ method.make_options([localization]))``; the truth enters only the metrics.
 Initializations (labelled in every figure name)::
 
     ``truth_free`` (token ``<s>``)  Gaussian priors around a coarse two-step solution (MDS → SMACOF
-                          on the correlation-peak ranges; anchors fix the frame when present)
+                          on the correlation-peak ranges, the shorter of a pair's two
+                          directions, then Cauchy-reweighted SMACOF so NLOS-biased ranges stop
+                          pulling; anchors fix the frame when present)
     ``informed`` (``<s>_informed``)  Gaussian priors around the truth plus N(0, σ0²) — an informed
                           start, not a truth-free result
     ``gauge`` (``<s>_gauge``)  the paper's uninformative anchor-free gauge priors (shows the
@@ -95,6 +97,7 @@ from phyloc.localization import (
     gaussian_priors,
     informed_centers,
 )
+from phyloc.localization.initialization import PAIR_COMBINE
 from phyloc.network import NetworkSpec
 from phyloc.network.rigidity import determined_pairs
 from phyloc.parallel import run_tasks
@@ -107,7 +110,13 @@ INITS = {"truth_free": "", "informed": "_informed", "gauge": "_gauge"}
 CDF_GRID_M = np.linspace(0.0, 30.0, 301)
 
 
-PRIOR_KEYS = ("prior_std_m", "informed_std_m", "gauge_extent_m")
+PRIOR_KEYS = (
+    "prior_std_m",
+    "informed_std_m",
+    "gauge_extent_m",
+    "init_pair_range",
+    "init_robust_scale_m",
+)
 """``[localization]`` keys of the experiment's priors; every other key is a method option."""
 
 
@@ -117,9 +126,13 @@ class LocalizationSpec:
 
     ``prior_std_m`` std of the truth-free Gaussian priors around the coarse solution [m];
     ``informed_std_m`` σ0 of the informed start [m]; ``gauge_extent_m`` half-width of the
-    uniform gauge priors [m]. Every other key is an option of the direct family
-    (:class:`~phyloc.localization.DirectOptions`: the :class:`~phyloc.localization.DPFOptions`
-    fields, ``outlier_nats`` …), kept as written in ``options``; a subtable
+    uniform gauge priors [m]; ``init_pair_range`` (``"min"``, or ``"mean"``) how the
+    truth-free start combines the two directions' correlation ranges of a pair and
+    ``init_robust_scale_m`` (5 m; 0: plain SMACOF) the Cauchy scale of its robust
+    reweighting (:func:`~phyloc.localization.initialization.coarse_positions`). Every other
+    key is an option of the direct family (:class:`~phyloc.localization.DirectOptions`: the
+    :class:`~phyloc.localization.DPFOptions` fields, ``outlier_nats`` …), kept as written in
+    ``options``; a subtable
     ``[localization.<method>]`` (``method_options``) holds the options of one method. A method
     whose options are :class:`~phyloc.localization.DirectOptions` gets ``options`` updated by
     its subtable, any other (a user's method) its subtable only (:meth:`options_for`).
@@ -130,9 +143,13 @@ class LocalizationSpec:
     informed_std_m: float = 10.0
     gauge_extent_m: float = 150.0
     method_options: dict = field(default_factory=dict)
+    init_pair_range: str = "min"
+    init_robust_scale_m: float = 5.0
 
     def __post_init__(self):
         v.positive("localization.prior_std_m", self.prior_std_m)
+        v.choice("localization.init_pair_range", self.init_pair_range, PAIR_COMBINE)
+        v.positive("localization.init_robust_scale_m", self.init_robust_scale_m, allow_zero=True)
         v.positive("localization.informed_std_m", self.informed_std_m)
         v.positive("localization.gauge_extent_m", self.gauge_extent_m)
         object.__setattr__(self, "options", dict(self.options))
@@ -216,6 +233,10 @@ def _priors(init, net, links, corr, lspec, Q, rng):
         std, label = lspec.informed_std_m, "informed start"
     else:
         anchors = pos[net.is_anchor] if net.n_anchors else None
+        robust = {
+            "combine": lspec.init_pair_range,
+            "robust_scale_m": lspec.init_robust_scale_m or None,
+        }
         try:
             sol = coarse_positions(
                 links,
@@ -225,6 +246,7 @@ def _priors(init, net, links, corr, lspec, Q, rng):
                 valid=corr.valid,
                 is_anchor=net.is_anchor,
                 anchor_positions=anchors,
+                **robust,
             )
         except ValidationError:
             # some node has no detected range (weak links): use every link's strongest peak
@@ -235,6 +257,7 @@ def _priors(init, net, links, corr, lspec, Q, rng):
                 net.dim,
                 is_anchor=net.is_anchor,
                 anchor_positions=anchors,
+                **robust,
             )
         centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
     X = gaussian_priors(centers, std, Q, rng)

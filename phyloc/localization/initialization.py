@@ -120,11 +120,19 @@ def _components_message(graph_w: np.ndarray) -> str:
 
 
 # -- range matrix -------------------------------------------------------------------------------
-def range_matrix(links, ranges, n_nodes, valid=None) -> tuple[np.ndarray, np.ndarray]:
+PAIR_COMBINE = ("mean", "min")
+"""How :func:`range_matrix` combines the ranges of one node pair."""
+
+
+def range_matrix(
+    links, ranges, n_nodes, valid=None, *, combine: str = "mean"
+) -> tuple[np.ndarray, np.ndarray]:
     """Symmetric range matrix of a network from directed link range estimates.
 
     Every valid measurement of the unordered pair ``{u, v}`` — ``(u, v)``, ``(v, u)`` or
-    repeats — is averaged; a pair without a valid measurement gets weight 0.
+    repeats — is averaged (``combine="mean"``) or the smallest is kept (``combine="min"``:
+    NLOS biases are positive, so the shortest of a pair's ranges is the least biased); a pair
+    without a valid measurement gets weight 0.
 
     Parameters
     ----------
@@ -138,11 +146,14 @@ def range_matrix(links, ranges, n_nodes, valid=None) -> tuple[np.ndarray, np.nda
         Number of nodes (>= 1).
     valid : [n_links] bool, optional
         Which estimates to use (e.g. the NLOS-rejected links are False). Default: all non-NaN.
+    combine : {"mean", "min"}
+        How a pair's valid ranges are combined.
 
     Returns
     -------
     D : [n_nodes, n_nodes] float64
-        Mean range of each pair [m], symmetric, 0 on the diagonal and where missing.
+        Mean (or smallest) range of each pair [m], symmetric, 0 on the diagonal and where
+        missing.
     W : [n_nodes, n_nodes] float64
         1 where the pair has at least one valid range, else 0 (diagonal 0).
 
@@ -185,8 +196,18 @@ def range_matrix(links, ranges, n_nodes, valid=None) -> tuple[np.ndarray, np.nda
         raise ValidationError(
             "ranges", f"{r[k]} at link {k}", "a valid range must be finite (NaN: missing)"
         )
+    if combine not in PAIR_COMBINE:
+        raise ValidationError("combine", combine, f"one of {PAIR_COMBINE}")
     a, b = lk[ok, 0], lk[ok, 1]
     lo, hi = np.minimum(a, b), np.maximum(a, b)
+    if combine == "min":
+        D = np.full((n, n), np.inf)
+        np.minimum.at(D, (lo, hi), r[ok])
+        D = np.minimum(D, D.T)
+        W = np.isfinite(D).astype(np.float64)
+        np.fill_diagonal(W, 0.0)
+        D = np.where(W > 0, D, 0.0)
+        return np.maximum(D, 0.0), W
     total = np.zeros((n, n))
     count = np.zeros((n, n))
     np.add.at(total, (lo, hi), r[ok])
@@ -394,6 +415,12 @@ def smacof(D, W, X0, *, n_iter=200, tol=1e-9, fixed=None, return_history=False):
     return X, s
 
 
+def _cauchy_weights(D, W, X, c):
+    """``W / (1 + (r/c)²)``, ``r = D − ‖x_i − x_j‖`` (robust MDS reweighting)."""
+    r = D - _pairwise(X)
+    return W / (1.0 + (r / c) ** 2)
+
+
 # -- coarse network solution --------------------------------------------------------------------
 @dataclass(frozen=True)
 class CoarseSolution:
@@ -405,7 +432,8 @@ class CoarseSolution:
         Coarse positions [m]; anchor rows equal the known anchor positions exactly.
     stress : float
         Final weighted raw stress ``Σ_{i<j} w_ij (‖x_i − x_j‖ − δ_ij)²`` [m²] over the measured
-        pairs (and anchor–anchor pairs, when anchors are given).
+        pairs (and anchor–anchor pairs, when anchors are given); after robust reweighting
+        ``w_ij`` are the final Cauchy weights, so outlying ranges barely count.
     residual_rms_m : float
         ``sqrt(stress / n_pairs)`` [m], the RMS range residual — a truth-free scale for the
         prior standard deviation of :func:`gaussian_priors`.
@@ -443,6 +471,9 @@ def coarse_positions(
     n_restarts=0,
     n_iter=300,
     tol=1e-9,
+    combine="mean",
+    robust_scale_m=None,
+    robust_rounds=10,
 ) -> CoarseSolution:
     """Truth-free coarse network solution from range estimates: MDS → SMACOF → anchor frame.
 
@@ -461,6 +492,14 @@ def coarse_positions(
        result is one of the equivalent solutions (``frame="partial"``).
        Without anchors the configuration is centred at the origin in an arbitrary orientation
        (``frame="arbitrary"``): compare it only gauge-invariantly (framework distance RMSE).
+
+    With ``robust_scale_m = c``, step 2 is followed by ``robust_rounds`` rounds of iteratively
+    reweighted SMACOF: each pair's weight becomes ``1 / (1 + (r/c)²)`` of its residual
+    ``r = δ_ij − ‖x_i − x_j‖`` (Cauchy weights, the M-estimator of robust MDS), so a range that
+    disagrees with the rest of the network by many ``c`` — an NLOS-biased range, or a false
+    peak — stops pulling the configuration. In dense urban networks this is what keeps the
+    start within a metre (:doc:`DiPNet Fig. 5 </guide/experiments>`); with exact or LOS ranges
+    it changes nothing (every residual is ~0).
 
     No true position is used. A node that is connected but not rigidly determined (e.g. two
     ranges in 2-D) gets one of its ambiguous positions.
@@ -488,6 +527,12 @@ def coarse_positions(
         Extra random SMACOF starts (>= 0). Default 0 (deterministic).
     n_iter, tol
         SMACOF iteration limit and relative tolerance, see :func:`smacof`.
+    combine : {"mean", "min"}
+        How the ranges of one pair are combined, see :func:`range_matrix`.
+    robust_scale_m : float, optional
+        Cauchy scale ``c`` [m] of the reweighting rounds (> 0); ``None``: plain SMACOF.
+    robust_rounds : int
+        Reweighting rounds (>= 1) when ``robust_scale_m`` is given.
 
     Returns
     -------
@@ -514,7 +559,10 @@ def coarse_positions(
     restarts = v.integer("n_restarts", n_restarts, minimum=0)
     if restarts:
         _rng(rng)
-    D, W = range_matrix(links, ranges, n, valid)
+    D, W = range_matrix(links, ranges, n, valid, combine=combine)
+    if robust_scale_m is not None:
+        c = v.positive("robust_scale_m", robust_scale_m)
+        rounds = v.integer("robust_rounds", robust_rounds, minimum=1)
 
     anchor = np.zeros(n, dtype=bool)
     if is_anchor is not None:
@@ -551,6 +599,11 @@ def coarse_positions(
             Xr, sr = smacof(D, W, rng.uniform(-extent, extent, size=(n, d)), n_iter=n_iter, tol=tol)
             if sr < s:
                 X, s = Xr, sr
+    if robust_scale_m is not None:
+        measured = W
+        for _ in range(rounds):
+            W = _cauchy_weights(D, measured, X, c)
+            X, s = smacof(D, W, X, n_iter=n_iter, tol=tol)
 
     if n_anchor:
         R, t = kabsch(X[anchor], A)
