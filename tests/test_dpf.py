@@ -617,3 +617,25 @@ def test_next_lambda_kernel_matches_its_twin_and_keeps_the_ess():
             assert ess(a, out[a] - lam[a]) == pytest.approx(target, rel=1e-3)
             bisected += 1
     assert bisected >= 3
+
+
+def test_model_error_is_smoothing_like_a_known_neighbour_uncertainty(rng):
+    """model_error_m = σ adds σ² to the smoothing: the same likelihood as a neighbour whose
+    isotropic covariance σ²·I projects σ² on every link (DiPNet eq. (15)), tabulated or not."""
+    from phyloc.errors import ValidationError
+    from phyloc.localization.likelihoods import MarginalDirectLikelihood
+
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=30.0)
+    amap = agent_map(is_anchor)
+    X = pos[:1, None, :] + rng.normal(0, 2.0, (1, 300, 2))
+    zero = np.zeros((5, 2, 2))
+    iso = np.repeat(0.09 * np.eye(2)[None], 5, axis=0)
+    a = MarginalDirectLikelihood(tab, links, amap, 1, model_error_m=0.3)
+    b = MarginalDirectLikelihood(tab, links, amap, 1)
+    np.testing.assert_allclose(a.loglik(X, pos, zero), b.loglik(X, pos, iso), rtol=1e-12)
+    np.testing.assert_allclose(a.frozen(X, pos, zero)(X), b.frozen(X, pos, iso)(X), rtol=1e-12)
+    with pytest.raises(ValidationError, match="model_error_m"):
+        MarginalDirectLikelihood(tab, links, amap, 1, model_error_m=-0.1)
+    with pytest.raises(ValidationError, match="model_error_m"):
+        DirectOptions(model_error_m=-1.0)

@@ -106,6 +106,9 @@ class DirectOptions:
     outlier_nats : float
         Bound on one link's evidence of the ``"marginal"`` likelihood [nats] (``inf``: the
         plain marginal).
+    model_error_m : float
+        Range model error [m] of the ``"marginal"`` likelihood (unresolved multipath; default
+        0), see :class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`.
     safeguards : bool
         False runs DiPNet Algorithm 1 as published (:meth:`DPFOptions.published`, keeping only
         ``n_particles``, ``n_iterations`` and ``interpolation`` of ``dpf``).
@@ -126,6 +129,7 @@ class DirectOptions:
     sample_kernel: str = "silverman"
     ranges: str = "corr"
     outlier_nats: float = 10.0
+    model_error_m: float = 0.0
     safeguards: bool = True
     process_std_m: float = 1.0
     resample_ess: float = 0.5
@@ -142,6 +146,7 @@ class DirectOptions:
             raise ValidationError("ranges", self.ranges, "the name of a range estimator")
         if not float(self.outlier_nats) > 0:
             raise ValidationError("outlier_nats", self.outlier_nats, "> 0 (inf: off)")
+        v.positive("model_error_m", self.model_error_m, allow_zero=True)
         v.positive("process_std_m", self.process_std_m, allow_zero=True)
         if not 0 <= float(self.resample_ess) <= 1:
             raise ValidationError("resample_ess", self.resample_ess, "in [0, 1]")
@@ -186,6 +191,7 @@ def link_likelihood(measurements: LinkMeasurements, t: int, options: DirectOptio
             window_m=m.window_m,
             ways=m.ways,
             outlier_nats=options.outlier_nats,
+            model_error_m=options.model_error_m,
         )
     if options.likelihood == "env":
         return DirectLikelihood(
