@@ -519,3 +519,30 @@ def test_robust_smacof_rejects_biased_ranges_and_leaves_exact_ones_alone():
         coarse_positions(links, exact, n, 2, robust_scale_m=-1.0)
     with pytest.raises(ValidationError, match="robust_rounds"):
         coarse_positions(links, exact, n, 2, robust_scale_m=5.0, robust_rounds=0)
+
+
+def test_weakly_weighted_invalid_ranges_place_a_silent_node_without_bending_the_rest():
+    """A node whose links all fail detection: its noise ranges at weight 1e-3 place it (a
+    guess), while the detected part of the network keeps its exact shape; at full weight
+    the same noise bends it."""
+    rng = np.random.default_rng(4)
+    n = 8
+    P = rng.uniform(0, 100, (n, 2))
+    links = np.array([[i, j] for i in range(n) for j in range(n) if i != j])
+    r = np.linalg.norm(P[links[:, 0]] - P[links[:, 1]], axis=1)
+    silent = (links[:, 0] == 7) | (links[:, 1] == 7)
+    r[silent] = rng.uniform(0, 300, silent.sum())  # noise peaks
+    valid = ~silent
+    with pytest.raises(ValidationError):
+        coarse_positions(links, r, n, 2, valid=valid)
+    weak = coarse_positions(links, r, n, 2, valid=valid, invalid_weight=1e-3)
+    full = coarse_positions(links, r, n, 2)
+    assert framework_distance_rmse(weak.positions[:7], P[:7]) < 0.05
+    assert framework_distance_rmse(full.positions[:7], P[:7]) > 1.0
+    D, W = range_matrix(links, r, n, valid, invalid_weight=1e-3)
+    assert np.all(W[7, :7] == 1e-3) and np.all(W[:7, :7][~np.eye(7, dtype=bool)] == 1.0)
+    r_pair = {(a, b): x for (a, b), x in zip(links.tolist(), r, strict=True)}
+    for j in range(7):  # the weak pairs carry the mean of their two invalid ranges
+        assert D[7, j] == pytest.approx(0.5 * (r_pair[(7, j)] + r_pair[(j, 7)]))
+    with pytest.raises(ValidationError, match="invalid_weight"):
+        range_matrix(links, r, n, valid, invalid_weight=1.0)

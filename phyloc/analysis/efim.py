@@ -197,8 +197,10 @@ def projected_variance(cov_v, e_uv) -> np.ndarray:
     norm = np.linalg.norm(e, axis=-1)
     zero = norm <= 0.0
     u = np.divide(e, norm[..., None], out=np.zeros_like(e), where=~zero[..., None])
-    proj = np.einsum("...i,...ij,...j->...", u, C, u)
-    iso = np.trace(C, axis1=-2, axis2=-1) / dim
+    # a PSD form, but a singular C (a collapsed belief) orthogonal to e rounds to −1e-17 or
+    # −5e-324; the variance is clamped at 0 so callers never see a negative
+    proj = np.maximum(np.einsum("...i,...ij,...j->...", u, C, u), 0.0)
+    iso = np.maximum(np.trace(C, axis1=-2, axis2=-1) / dim, 0.0)
     return np.where(zero, iso, proj)
 
 

@@ -220,6 +220,11 @@ class LocalizationExperimentSpec:
         return experiment_from_dict(cls, d, fast=fast)
 
 
+UNDETECTED_WEIGHT = 1e-3
+"""SMACOF weight of a pair known only from links below the detection threshold, when the
+detected links leave the truth-free start disconnected."""
+
+
 def _priors(init, net, links, corr, lspec, Q, rng):
     """Prior particles (``Q`` per agent) and log density of one initialization (agents only)."""
     agents = net.agent_index
@@ -249,12 +254,16 @@ def _priors(init, net, links, corr, lspec, Q, rng):
                 **robust,
             )
         except ValidationError:
-            # some node has no detected range (weak links): use every link's strongest peak
+            # some node has no detected range: undetected links join in with their strongest
+            # peak at a weight of UNDETECTED_WEIGHT, placing the disconnected nodes (a guess:
+            # their pairs are unobservable) without bending the detected part of the network
             sol = coarse_positions(
                 links,
                 corr.range_m,
                 net.n_nodes,
                 net.dim,
+                valid=corr.valid,
+                invalid_weight=UNDETECTED_WEIGHT,
                 is_anchor=net.is_anchor,
                 anchor_positions=anchors,
                 **robust,

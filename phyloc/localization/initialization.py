@@ -125,7 +125,7 @@ PAIR_COMBINE = ("mean", "min")
 
 
 def range_matrix(
-    links, ranges, n_nodes, valid=None, *, combine: str = "mean"
+    links, ranges, n_nodes, valid=None, *, combine: str = "mean", invalid_weight: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Symmetric range matrix of a network from directed link range estimates.
 
@@ -148,6 +148,11 @@ def range_matrix(
         Which estimates to use (e.g. the NLOS-rejected links are False). Default: all non-NaN.
     combine : {"mean", "min"}
         How a pair's valid ranges are combined.
+    invalid_weight : float
+        Weight in ``[0, 1)`` of a pair that has no valid range but a finite invalid one (its
+        invalid ranges combined the same way); 0 (default) leaves such pairs out. A small
+        weight lets a weak guess (e.g. the strongest peak of a link below the detection
+        threshold) place otherwise disconnected nodes without bending the rest.
 
     Returns
     -------
@@ -198,11 +203,26 @@ def range_matrix(
         )
     if combine not in PAIR_COMBINE:
         raise ValidationError("combine", combine, f"one of {PAIR_COMBINE}")
-    a, b = lk[ok, 0], lk[ok, 1]
+    w_bad = v.positive("invalid_weight", invalid_weight, allow_zero=True)
+    if w_bad >= 1.0:
+        raise ValidationError("invalid_weight", invalid_weight, "in [0, 1)")
+    D, W = _pair_ranges(lk, r, ok, n, combine)
+    if w_bad > 0:
+        weak = ~ok & np.isfinite(r)
+        Db, Wb = _pair_ranges(lk, r, weak, n, combine)
+        fill = (W == 0) & (Wb > 0)
+        D = np.where(fill, Db, D)
+        W = np.where(fill, w_bad, W)
+    return D, W
+
+
+def _pair_ranges(lk, r, sel, n, combine):
+    """``range_matrix`` of the links ``sel`` (validated input)."""
+    a, b = lk[sel, 0], lk[sel, 1]
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     if combine == "min":
         D = np.full((n, n), np.inf)
-        np.minimum.at(D, (lo, hi), r[ok])
+        np.minimum.at(D, (lo, hi), r[sel])
         D = np.minimum(D, D.T)
         W = np.isfinite(D).astype(np.float64)
         np.fill_diagonal(W, 0.0)
@@ -210,7 +230,7 @@ def range_matrix(
         return np.maximum(D, 0.0), W
     total = np.zeros((n, n))
     count = np.zeros((n, n))
-    np.add.at(total, (lo, hi), r[ok])
+    np.add.at(total, (lo, hi), r[sel])
     np.add.at(count, (lo, hi), 1.0)
     total += total.T
     count += count.T
@@ -474,6 +494,7 @@ def coarse_positions(
     combine="mean",
     robust_scale_m=None,
     robust_rounds=10,
+    invalid_weight=0.0,
 ) -> CoarseSolution:
     """Truth-free coarse network solution from range estimates: MDS → SMACOF → anchor frame.
 
@@ -533,6 +554,8 @@ def coarse_positions(
         Cauchy scale ``c`` [m] of the reweighting rounds (> 0); ``None``: plain SMACOF.
     robust_rounds : int
         Reweighting rounds (>= 1) when ``robust_scale_m`` is given.
+    invalid_weight : float
+        Weight of pairs known only from invalid ranges, see :func:`range_matrix`.
 
     Returns
     -------
@@ -559,7 +582,7 @@ def coarse_positions(
     restarts = v.integer("n_restarts", n_restarts, minimum=0)
     if restarts:
         _rng(rng)
-    D, W = range_matrix(links, ranges, n, valid, combine=combine)
+    D, W = range_matrix(links, ranges, n, valid, combine=combine, invalid_weight=invalid_weight)
     if robust_scale_m is not None:
         c = v.positive("robust_scale_m", robust_scale_m)
         rounds = v.integer("robust_rounds", robust_rounds, minimum=1)
