@@ -1,5 +1,6 @@
 """The localization experiment's observability rule and NEES calibration figures."""
 
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -61,8 +62,13 @@ def test_nees_is_invariant_to_the_anchor_free_gauge_and_survives_singular_belief
     b = lx._nees(moved, R @ P @ R.T, truth, free)
     np.testing.assert_allclose(a, b, rtol=1e-9)
     P[2] = 0.0
-    c = lx._nees(est, P, truth, free)
-    assert np.isnan(c[2]) and np.all(np.isfinite(np.delete(c, 2)))
+    P[3] = np.nan  # a method that publishes no covariance for one agent
+    P[4] = [[1e-300, 0.0], [0.0, 1e-300]]  # near-singular: a huge, finite NEES
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        c = lx._nees(est, P, truth, free)
+    assert np.all(np.isnan(c[2:4])) and np.all(np.isfinite(np.delete(c, [2, 3])))
+    assert c[4] > 1e250
     assert np.all(np.isnan(lx._nees(est, None, truth, free)))
 
 

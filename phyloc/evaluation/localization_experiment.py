@@ -435,8 +435,11 @@ def _nees(estimates, covariances, truth, is_anchor):
     for i, u in enumerate(agents):
         P = R @ covariances[i] @ R.T
         e = aligned[u] - truth[u]
+        if not (np.all(np.isfinite(P)) and np.all(np.isfinite(e))):
+            continue
         try:
-            val = float(e @ np.linalg.solve(P, e))
+            with np.errstate(all="ignore"):
+                val = float(e @ np.linalg.solve(P, e))
         except np.linalg.LinAlgError:
             continue
         out[i] = val if np.isfinite(val) and val >= 0 else np.nan
@@ -738,8 +741,8 @@ def summary_lines(results: dict):
             )
             out.append(f"{tag}, {n} agents, smallest ESS: {ess} (of {meta['n_particles']})")
             ratio = ", ".join(
-                f"{m} {f.get(f'{m}.{tag}.agents_{n}.error_to_belief_ratio', math.nan):.2f}"
-                f" ({f.get(f'{m}.{tag}.agents_{n}.error_to_belief_ratio_median', math.nan):.2f})"
+                f"{m} {f.get(f'{m}.{tag}.agents_{n}.error_to_belief_ratio', math.nan):.3g}"
+                f" ({f.get(f'{m}.{tag}.agents_{n}.error_to_belief_ratio_median', math.nan):.3g})"
                 for m in meta["methods"]
             )
             out.append(
