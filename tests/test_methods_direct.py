@@ -252,6 +252,11 @@ def test_a_users_direct_method_runs_in_the_localization_experiment(monkeypatch):
     res = lx.run(load_recipe(RECIPE), progress=False)
     f = res["figures"]
     assert np.isfinite(f["shrink_test.c2.agents_4.framework_rmse_m"])
+    # the start figure is the prior centres' RMSE; the user's method returns the mean of Q =
+    # 100 particles around them (std 10 m): the two differ by ~1 m per axis, not more
+    start = f["start.c2.agents_4.framework_rmse_m"]
+    assert np.isfinite(start)
+    assert abs(f["shrink_test.c2.agents_4.framework_rmse_m"] - start) < 3 * 2 * 10 / 10
     assert np.isnan(f["shrink_test.c2.agents_4.ess_min"])  # no ESS diagnostics: NaN
     assert f["corr.c2.agents_4.ess_min"] > 0
     # the method's own options come from [localization.shrink_test] only

@@ -46,6 +46,8 @@ agent and snapshot),
 ``<method>.<token>.agents_<n>.shape_difference_m`` (DiPNet eq. (1)),
 ``<method>.<token>.agents_<n>.ess_min`` (smallest effective sample size of any agent in any
 iteration, mean over runs),
+``start.<token>.agents_<n>.framework_rmse_m`` (the prior centres themselves: what a method
+starts from — the coarse truth-free solution, or the perturbed truth),
 ``<method>.<token>.agents_<n>.framework_rmse_observable_m`` (DiPNet eq. (4) over the *observable*
 pairs only: those whose distance the detected links determine, :func:`observable_pairs`),
 ``<token>.agents_<n>.unobservable_pair_fraction`` (the share of pairs left out there: no method,
@@ -226,13 +228,14 @@ detected links leave the truth-free start disconnected."""
 
 
 def _priors(init, net, links, corr, lspec, Q, rng):
-    """Prior particles (``Q`` per agent) and log density of one initialization (agents only)."""
+    """Prior particles (``Q`` per agent) and log density of one initialization (agents only),
+    and the prior centres ``[n_agents, dim]`` (None for the gauge priors)."""
     agents = net.agent_index
     pos = net.positions[0]
     if init == "gauge":
         X = gauge_priors(agents.size, net.dim, Q, lspec.gauge_extent_m, rng)
         ext = lspec.gauge_extent_m
-        return Prior(X, lambda x: gauge_log_prior(x, ext), "uninformative gauge priors")
+        return Prior(X, lambda x: gauge_log_prior(x, ext), "uninformative gauge priors"), None
     if init == "informed":
         centers = informed_centers(pos[agents], lspec.informed_std_m, rng=rng)
         std, label = lspec.informed_std_m, "informed start"
@@ -270,7 +273,7 @@ def _priors(init, net, links, corr, lspec, Q, rng):
             )
         centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
     X = gaussian_priors(centers, std, Q, rng)
-    return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label)
+    return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label), centers
 
 
 def _task(payload, seed_seq):
@@ -396,7 +399,15 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particl
             Q = opts.dpf.n_particles if isinstance(opts, DirectOptions) else lspec.dpf.n_particles
             if Q not in priors:
                 rng_p = np.random.default_rng(prior_seed)
-                priors[Q] = _priors(init, net, real.links[0], corr0, lspec, Q, rng_p)
+                priors[Q], centers = _priors(init, net, real.links[0], corr0, lspec, Q, rng_p)
+                if f"start|{init}|err" not in out:  # the start itself, as a method would be
+                    out[f"start|{init}|err"] = (
+                        np.full(0, np.nan)
+                        if centers is None
+                        else framework_distance_errors(
+                            _nodes(centers, meas, net.agent_index), net.positions[0], net.is_anchor
+                        )
+                    )
             if keep_particles and isinstance(opts, DirectOptions):
                 opts = dataclasses.replace(opts, keep_particles=tuple(keep_particles))
             res = REGISTRY[name].run(meas, priors[Q], rng_m, opts)
@@ -598,6 +609,17 @@ def _aggregate(keys, results, exp, tokens):
             figures[f"{tok}.agents_{n}.unobservable_pair_fraction"] = float(1.0 - obs.mean())
         for init in exp.inits:
             tag = tok + INITS[init]
+            for n in exp.agents:
+                err = np.concatenate(
+                    [
+                        r.get(f"start|{init}|err", np.full(0, np.nan))
+                        for (t, nn, _), r in zip(keys, results, strict=True)
+                        if t == tok and nn == n
+                    ]
+                )
+                figures[f"start.{tag}.agents_{n}.framework_rmse_m"] = (
+                    float(math.sqrt(np.mean(err**2))) if err.size else float("nan")
+                )
             for m in exp.methods:
                 key = f"{m}|{init}"
                 for n in exp.agents:
