@@ -854,12 +854,12 @@ def plot(results: dict, path) -> None:
                 )
     ax.set_title(f"{tok}, {n} agents: mean ESS per iteration")
     ax.set_xlabel("iteration")
-    ax.legend(fontsize=6)
-    ax.grid(True, which="both", alpha=0.3)
     ax2.set_title("published std vs actual error per axis [m]")
     ax2.set_xlabel("iteration")
-    ax2.legend(fontsize=6)
-    ax2.grid(True, which="both", alpha=0.3)
+    for a in (ax, ax2):
+        if a.get_legend_handles_labels()[0]:  # a run without per-iteration series draws none
+            a.legend(fontsize=6)
+        a.grid(True, which="both", alpha=0.3)
     if tracking:
         _plot_tracks(axes[2], ser, meta, toks)
     fig.suptitle(
