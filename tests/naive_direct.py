@@ -327,3 +327,25 @@ def mixture_tabulated_numpy(
                 val[inside] = np.sum(w * nodes, axis=0)
             out[r] += gamma * val
     return out
+
+
+def mh_propose_numpy(X, z, move_scale, min_std):
+    """Twin of ``mh_propose_kernel``: ``X + max(move_scale·std_q X, min_std)·z`` per agent."""
+    return X + np.maximum(X.std(axis=1, keepdims=True) * move_scale, min_std) * z
+
+
+def mh_accept_numpy(X, lp, ll_old, ll_new, Xp, lpp, lop, lnp, lam, log_u):
+    """Twin of ``mh_accept_kernel`` (returns new arrays and the number of accepted moves)."""
+    g = lam[:, None]
+    cur = lp + g * ll_new + (1.0 - g) * ll_old
+    prop = lpp + g * lnp + (1.0 - g) * lop
+    with np.errstate(invalid="ignore"):
+        log_ratio = np.where(np.isfinite(prop), prop - cur, -np.inf)
+    acc = log_u < log_ratio
+    out = (
+        np.where(acc[:, :, None], Xp, X),
+        np.where(acc, lpp, lp),
+        np.where(acc, lop, ll_old),
+        np.where(acc, lnp, ll_new),
+    )
+    return out, int(acc.sum())

@@ -8,6 +8,8 @@ import pytest
 from naive_direct import (
     direct_loglik_numpy,
     gauss_loglik_numpy,
+    mh_accept_numpy,
+    mh_propose_numpy,
     mixture_grid_numpy,
     mixture_loglik_numpy,
     mixture_table_numpy,
@@ -17,6 +19,7 @@ from naive_direct import (
 )
 
 from phyloc.localization import _kernels as K
+from phyloc.localization import particles as P
 from phyloc.localization.direct import (
     DirectOptions,
     DPFOptions,
@@ -132,8 +135,11 @@ def test_loglik_kernels_match_numpy_twins(rng):
     np.testing.assert_allclose(out, ref, rtol=1e-12)
     assert np.all(out[1] == 0)
     r, iv = rng.uniform(10, 90, 5), rng.uniform(0.1, 3, 5)
-    K.gauss_loglik_kernel(X, offsets, nb, r, iv, centers, out)
+    K.gauss_loglik_kernel(X, np.arange(n_agents), offsets, nb, r, iv, centers, out)
     np.testing.assert_allclose(out, gauss_loglik_numpy(X, offsets, nb, r, iv, centers), rtol=1e-12)
+    sub = np.empty((2, Q))  # a subset of the agents, in any order
+    K.gauss_loglik_kernel(X[[2, 0]], np.array([2, 0]), offsets, nb, r, iv, centers, sub)
+    np.testing.assert_array_equal(sub, out[[2, 0]])
 
 
 def test_systematic_resampling_matches_twin_and_textbook(rng):
@@ -617,6 +623,113 @@ def test_next_lambda_kernel_matches_its_twin_and_keeps_the_ess():
             assert ess(a, out[a] - lam[a]) == pytest.approx(target, rel=1e-3)
             bisected += 1
     assert bisected >= 3
+
+
+def test_mh_kernels_match_their_twins(rng):
+    """Proposal and acceptance kernels of the resample-move sweep against their NumPy twins,
+    with −inf targets at the proposal (rejected) and at the current particle (accepted)."""
+    n, Q = 5, 300
+    X = rng.normal(0, 3.0, (n, Q, 2)) * np.array([1.0, 0.2])
+    X[4] = 7.0  # a collapsed cloud: the minimum step
+    z = rng.standard_normal(X.shape)
+    Xp = np.empty_like(X)
+    K.mh_propose_kernel(X, z, 0.5, 1e-4, Xp)
+    np.testing.assert_allclose(Xp, mh_propose_numpy(X, z, 0.5, 1e-4), rtol=1e-12, atol=1e-12)
+    assert np.allclose(Xp[4] - 7.0, 1e-4 * z[4])
+    lp, ll_old, ll_new, lpp, lop, lnp = rng.normal(0, 2.0, (6, n, Q))
+    lpp[0, :50] = -np.inf
+    lp[1, :50] = -np.inf
+    lam = np.array([0.0, 0.3, 1.0, 0.7, 0.5])
+    log_u = np.log(rng.random((n, Q)))
+    ref, n_ref = mh_accept_numpy(X, lp, ll_old, ll_new, Xp, lpp, lop, lnp, lam, log_u)
+    got = [a.copy() for a in (X, lp, ll_old, ll_new)]
+    n_acc = K.mh_accept_kernel(*got, Xp, lpp, lop, lnp, lam, log_u)
+    assert n_acc == n_ref and 0 < n_acc < n * Q
+    for g, r in zip(got, ref, strict=True):
+        np.testing.assert_array_equal(g, r)
+    assert np.all(got[0][0, :50] == X[0, :50]) and np.all(got[0][1, :50] == Xp[1, :50])
+
+
+def test_mh_moves_leave_the_bridge_target_invariant():
+    """Exact samples of ``prior·exp(λ ll_new + (1 − λ) ll_old)`` stay samples of it after
+    Metropolis–Hastings sweeps: 1-D Gaussians, prior N(0, 4), ll_new = N(x; 2, 1),
+    ll_old = N(x; −2, 1). The agent at λ = 1 never evaluates the old likelihood; the agent
+    at λ = 0.4 evaluates it on its own row only."""
+    rng = np.random.default_rng(11)
+    Q = 20000
+    lam = np.array([1.0, 0.4])
+
+    def logp(x):
+        return -(x[..., 0] ** 2) / 8.0
+
+    def new_fn(x):
+        return -0.5 * (x[..., 0] - 2.0) ** 2
+
+    calls = []
+
+    def old_fn(x, agents=None):
+        calls.append(None if agents is None else list(agents))
+        return -0.5 * (x[..., 0] + 2.0) ** 2
+
+    # the bridge is Gaussian: precision 1/4 + 1, mean (2λ − 2(1 − λ)) / (5/4)
+    prec = 1.25
+    mean = (2.0 * lam - 2.0 * (1.0 - lam)) / prec
+    X = (mean[:, None] + rng.standard_normal((2, Q)) / np.sqrt(prec))[..., None]
+    X2, lp, ll_old, ll_new = P.mh_moves(
+        X, logp(X), old_fn(X), new_fn(X), lam, old_fn, new_fn, logp, rng,
+        n_moves=6, move_scale=0.5,
+    )  # fmt: skip
+    assert calls[1:] == [[1]] * 6
+    moved = np.mean(X2 != X, axis=1)[:, 0]
+    assert np.all(moved > 0.5)  # the sweeps do move
+    se_mean = 3.0 / np.sqrt(prec * Q) * 3  # ~3 σ, allowing for the chain's correlation
+    np.testing.assert_allclose(X2[..., 0].mean(axis=1), mean, atol=se_mean)
+    np.testing.assert_allclose(X2[..., 0].var(axis=1), 1.0 / prec, rtol=0.06)
+    np.testing.assert_allclose(ll_new, new_fn(X2), rtol=1e-12)
+    np.testing.assert_allclose(lp, logp(X2), rtol=1e-12)
+    np.testing.assert_allclose(ll_old[1], old_fn(X2)[1], rtol=1e-12)
+
+
+def test_translation_transport_reaches_a_far_target_and_stays_exact():
+    """Translation transport (``DPFOptions.translate``): a cloud of the old target N(0, σ²)
+    whose new target N(μ, σ²) lies 20 σ away is shifted onto it (ESS from ≈ 1 to > 0.9 Q),
+    the importance weights are exact (ll_new − ll_old at the shifted particles equals the log
+    ratio of the two densities there), and the returned old function is the shifted old
+    target: ``lp + ll_old`` = log π_old(x − s) at the particles and elsewhere."""
+    from phyloc.localization.direct.dpf import _translate
+
+    rng = np.random.default_rng(5)
+    Q, sig = 2000, 0.02
+    mu = np.array([[0.4, 0.0], [0.0, 0.001]])  # agent 0: far; agent 1: already there
+
+    def logp(x):  # a broad Gaussian prior
+        return -0.5 * np.sum(x**2, axis=-1) / 25.0
+
+    def old_fn(x, agents=None):
+        return -0.5 * np.sum(x**2, axis=-1) / sig**2 + 0.5 * np.sum(x**2, axis=-1) / 25.0
+
+    def new_fn(x, agents=None):
+        m = mu if agents is None else mu[np.asarray(agents)]
+        return -0.5 * np.sum((x - m[:, None]) ** 2, axis=-1) / sig**2
+
+    X = sig * rng.standard_normal((2, Q, 2))
+    lw = np.full((2, Q), -np.log(Q))
+    lp, ll_old, ll_new = logp(X), old_fn(X), new_fn(X)
+    ess0 = P.effective_sample_size(P.normalize_log_weights(lw + ll_new - ll_old)[0])
+    assert ess0[0] < 5
+    X2, lp2, lo2, ln2, shifted = _translate(X, lw, lp, ll_old, ll_new, old_fn, new_fn, logp, 3, Q)
+    ess = P.effective_sample_size(P.normalize_log_weights(lw + ln2 - lo2)[0])
+    assert ess[0] > 0.9 * Q and ess[1] >= ess0[1]
+    s = (X2 - X)[:, 0]
+    assert np.allclose(X2 - X, s[:, None]) and abs(s[0, 0] - 0.4) < 0.01
+    np.testing.assert_allclose(lp2 + lo2, lp + ll_old, rtol=1e-10, atol=1e-8)
+    np.testing.assert_allclose(ln2, new_fn(X2), rtol=1e-12)
+    Y = X2 + 0.01 * rng.standard_normal(X2.shape)  # other points: the shifted old target
+    back = Y - s[:, None]
+    np.testing.assert_allclose(
+        logp(Y) + shifted(Y), logp(back) + old_fn(back), rtol=1e-10, atol=1e-8
+    )
+    np.testing.assert_allclose(shifted(Y[[0]], [0]), shifted(Y)[[0]], rtol=1e-12)
 
 
 def test_model_error_is_smoothing_like_a_known_neighbour_uncertainty(rng):

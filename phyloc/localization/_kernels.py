@@ -51,27 +51,30 @@ def direct_loglik_kernel(
 
 
 @njit(cache=True, parallel=True)
-def gauss_loglik_kernel(particles, offsets, nb_node, ranges, inv_var, centers, out):
-    """``out[a, q] = −½ Σ_j inv_var[j]·(‖x_{a,q} − c_{nb_node[j]}‖ − r_j)²``.
+def gauss_loglik_kernel(particles, agents, offsets, nb_node, ranges, inv_var, centers, out):
+    """``out[r, q] = −½ Σ_j inv_var[j]·(‖x_{r,q} − c_{nb_node[j]}‖ − r_j)²`` over the links
+    ``j`` of agent ``a = agents[r]`` (row ``r`` of ``particles`` and ``out`` is that agent; a
+    subset of the agents may be evaluated).
 
     The Gaussian ranging model with the equivalent ranging variance (ERV) of DiPNet eq. (18):
     ``1/inv_var = var_r + σ²_{v→uv}`` (times 1/γ when tempered).
     """
-    n_agents, Q, dim = particles.shape
-    for a in prange(n_agents):
+    n_rows, Q, dim = particles.shape
+    for r in prange(n_rows):
+        a = agents[r]
         for q in range(Q):
-            out[a, q] = 0.0
+            out[r, q] = 0.0
         for j in range(offsets[a], offsets[a + 1]):
             c = centers[nb_node[j]]
-            r = ranges[j]
+            rj = ranges[j]
             w = 0.5 * inv_var[j]
             for q in range(Q):
                 acc = 0.0
                 for k in range(dim):
-                    t = particles[a, q, k] - c[k]
+                    t = particles[r, q, k] - c[k]
                     acc += t * t
-                e = np.sqrt(acc) - r
-                out[a, q] -= w * e * e
+                e = np.sqrt(acc) - rj
+                out[r, q] -= w * e * e
 
 
 @njit(cache=True)
@@ -141,6 +144,51 @@ def systematic_resample_kernel(weights, u0, out):
             j += 1
             c += weights[j]
         out[i] = j
+
+
+@njit(cache=True, parallel=True)
+def mh_propose_kernel(X, z, move_scale, min_std, out):
+    """Random-walk proposals of a resample-move sweep: ``out = X + s·z`` per agent with
+    ``s_k = max(move_scale·std_q X[a, :, k], min_std)`` (population std over the particles)."""
+    n_agents, Q, dim = X.shape
+    for a in prange(n_agents):
+        for k in range(dim):
+            m = 0.0
+            for q in range(Q):
+                m += X[a, q, k]
+            m /= Q
+            v = 0.0
+            for q in range(Q):
+                t = X[a, q, k] - m
+                v += t * t
+            s = max(np.sqrt(v / Q) * move_scale, min_std)
+            for q in range(Q):
+                out[a, q, k] = X[a, q, k] + s * z[a, q, k]
+
+
+@njit(cache=True, parallel=True)
+def mh_accept_kernel(X, lp, ll_old, ll_new, Xp, lpp, lop, lnp, lam, log_u):
+    """Metropolis–Hastings acceptance, in place: particle ``(a, q)`` takes its proposal when
+    ``log_u < prop − cur`` with ``cur = lp + λ_a·ll_new + (1 − λ_a)·ll_old`` and ``prop``
+    likewise at the proposal; a proposal whose target is not finite is rejected. Returns the
+    number of accepted moves."""
+    n_agents, Q, dim = X.shape
+    acc = np.zeros(n_agents, np.int64)
+    for a in prange(n_agents):
+        g = lam[a]
+        for q in range(Q):
+            prop = lpp[a, q] + g * lnp[a, q] + (1.0 - g) * lop[a, q]
+            if not np.isfinite(prop):
+                continue
+            cur = lp[a, q] + g * ll_new[a, q] + (1.0 - g) * ll_old[a, q]
+            if log_u[a, q] < prop - cur:
+                for k in range(dim):
+                    X[a, q, k] = Xp[a, q, k]
+                lp[a, q] = lpp[a, q]
+                ll_new[a, q] = lnp[a, q]
+                ll_old[a, q] = lop[a, q]
+                acc[a] += 1
+    return acc.sum()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -193,20 +193,39 @@ class GaussianRangeLikelihood:
 
     def loglik(self, particles, centers, covs, gamma=1.0) -> np.ndarray:
         """``γ Σ_v log p̃(r̂_uv | x, p̂_v)`` for every particle, ``[n_agents, Q]``."""
+        return self.frozen(particles, centers, covs, gamma)(particles)
+
+    def frozen(self, particles, centers, covs, gamma=1.0):
+        """``loglik`` with the neighbours' moments frozen, as a function of the particles.
+
+        The ERV variances are computed once. Returns ``fn(x, agents=None) -> [n_rows, Q']``
+        for ``x [n_rows, Q', dim]``, row ``r`` being agent ``agents[r]`` (all agents when
+        None); ``particles`` is unused (the signature of
+        :meth:`MarginalDirectLikelihood.frozen`).
+        """
         var = self.var.copy()
         if self.use_erv:
             var += projected_variances(centers, covs, self.csr.rx, self.csr.tx)
-        out = np.empty(particles.shape[:2])
-        K.gauss_loglik_kernel(
-            particles,
-            self.csr.offsets,
-            self.csr.tx,
-            self.ranges,
-            gamma / var,
-            np.ascontiguousarray(centers, dtype=np.float64),
-            out,
-        )
-        return out
+        inv_var = gamma / var
+        c = np.ascontiguousarray(centers, dtype=np.float64)
+        every = np.arange(self.csr.offsets.size - 1, dtype=np.int64)
+
+        def fn(x, agents=None):
+            rows = every if agents is None else np.asarray(agents, dtype=np.int64)
+            out = np.empty(x.shape[:2])
+            K.gauss_loglik_kernel(
+                np.ascontiguousarray(x, dtype=np.float64),
+                rows,
+                self.csr.offsets,
+                self.csr.tx,
+                self.ranges,
+                inv_var,
+                c,
+                out,
+            )
+            return out
+
+        return fn
 
 
 class MarginalDirectLikelihood:
@@ -360,7 +379,7 @@ class MarginalDirectLikelihood:
         4-point Lagrange interpolation; distances outside the grid are evaluated exactly. The
         spacing keeps the interpolation error below ~1e-3 nats per link (tested), so a
         particle costs one square root and one cubic per link however many peaks the link
-        has. The safeguarded filter evaluates the same frozen likelihood 20–30 times per
+        has. The safeguarded filter evaluates the same frozen likelihood many times per
         iteration (tempering steps × Metropolis–Hastings moves); the table is built once.
 
         Returns ``fn(x, agents=None) -> [n_rows, Q']`` for ``x [n_rows, Q', dim]``, row ``r``

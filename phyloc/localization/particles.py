@@ -161,27 +161,31 @@ def mh_moves(X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, *, n_moves, 
     """Random-walk Metropolis–Hastings sweeps per agent (resample-move).
 
     Target: ``prior · exp(λ ll_new + (1 − λ) ll_old)`` with ``λ [n_agents]``. Proposals are
-    ``X + N(0, (move_scale·std_q X)²)``; ``logp``, ``new_fn`` and ``old_fn`` (or None) evaluate
-    the prior and the two log-likelihoods at ``[n_agents, Q, dim]``. Returns the moved
-    ``(X, lp, ll_old, ll_new)``.
+    ``X + N(0, (move_scale·std_q X)²)`` (:func:`~phyloc.localization._kernels.mh_propose_kernel`,
+    acceptance by :func:`~phyloc.localization._kernels.mh_accept_kernel`); ``logp`` and
+    ``new_fn`` evaluate the prior and the new log-likelihood at ``[n_agents, Q, dim]``,
+    ``old_fn`` (or None: ``ll_old ≡ 0``) the old one as ``old_fn(x, agents)`` on the rows of
+    the agents still bridging (``λ < 1``): where ``λ = 1`` the old likelihood has weight 0 and
+    is not evaluated (its ``ll_old`` entries of accepted moves become 0). Returns the moved
+    ``(X, lp, ll_old, ll_new)`` (new arrays; the inputs are not modified).
     """
     n_agents, Q, _ = X.shape
-    lam3 = lam[:, None]
-    if old_fn is not None and np.all(lam >= 1.0):
+    lam = np.ascontiguousarray(lam, dtype=np.float64)
+    X, lp, ll_old, ll_new = (np.array(a, dtype=np.float64) for a in (X, lp, ll_old, ll_new))
+    bridging = np.flatnonzero(lam < 1.0)
+    if bridging.size == 0:
         old_fn = None  # weight 1 − λ = 0 everywhere: the old likelihood drops out
+    Xp = np.empty_like(X)
     for _ in range(n_moves):
-        std = np.maximum(X.std(axis=1, keepdims=True) * move_scale, 1e-4)
-        Xp = X + std * rng.standard_normal(X.shape)
-        lpp = logp(Xp)
-        lnp = new_fn(Xp)
-        lop = old_fn(Xp) if old_fn is not None else np.zeros_like(lnp)
-        cur = lp + lam3 * ll_new + (1.0 - lam3) * ll_old
-        prop = lpp + lam3 * lnp + (1.0 - lam3) * lop
-        with np.errstate(invalid="ignore"):
-            log_ratio = np.where(np.isfinite(prop), prop - cur, -np.inf)
-        accept = np.log(rng.random((n_agents, Q))) < log_ratio
-        X = np.where(accept[:, :, None], Xp, X)
-        lp = np.where(accept, lpp, lp)
-        ll_new = np.where(accept, lnp, ll_new)
-        ll_old = np.where(accept, lop, ll_old)
+        K.mh_propose_kernel(X, rng.standard_normal(X.shape), float(move_scale), 1e-4, Xp)
+        lpp = np.ascontiguousarray(logp(Xp), dtype=np.float64)
+        lnp = np.ascontiguousarray(new_fn(Xp), dtype=np.float64)
+        lop = np.zeros_like(lnp)
+        if old_fn is not None:
+            if bridging.size == n_agents:
+                lop[:] = old_fn(Xp)
+            else:
+                lop[bridging] = old_fn(Xp[bridging], agents=bridging)
+        log_u = np.log(rng.random((n_agents, Q)))
+        K.mh_accept_kernel(X, lp, ll_old, ll_new, Xp, lpp, lop, lnp, lam, log_u)
     return X, lp, ll_old, ll_new

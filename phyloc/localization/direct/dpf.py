@@ -22,6 +22,11 @@ phyloc's default adds three safeguards, each an option::
                        leave the current target ``prior(x)·exp(γ_k Σ_v log p̃)`` invariant
                        (regularization by Gaussian random-walk proposals scaled to the cloud);
                        the next iteration then reweights by the change of the target only;
+    ``translate``      before tempering, each agent's cloud is shifted rigidly towards the new
+                       target (mean-shift iterations on the importance weights; the shifted
+                       cloud is weighted exactly, the bridge then starts from it): when the
+                       neighbours' means move by more than the belief's width, the geometric
+                       bridge alone needs many small steps;
     ``cov_floor_m``    the published covariance is at least ``max(floor², CRB_u/dim)·I`` where
                        CRB_u is the agent's position CRB from its links' ranging information
                        (the EFIM of DiPNet eq. (17), :func:`phyloc.analysis.efim.efim`) at the
@@ -86,6 +91,10 @@ class DPFOptions:
         Metropolis–Hastings sweeps per iteration.
     move_scale : float
         Proposal std as a fraction of the cloud's per-axis std.
+    translate : int
+        Mean-shift iterations of the translation transport before each iteration's tempering
+        (0: none). Each costs one evaluation of the new likelihood and the prior; the shift
+        with the largest ESS is kept per agent, and only when it raises the ESS.
     cov_floor_m : float
         Minimum published std per axis [m]; 0 disables the floor (and the CRB term).
     interpolation : str
@@ -100,6 +109,7 @@ class DPFOptions:
     max_annealing_steps: int = 60
     n_moves: int = 2
     move_scale: float = 0.5
+    translate: int = 3
     cov_floor_m: float = 0.05
     interpolation: str = "cubic"
 
@@ -115,6 +125,7 @@ class DPFOptions:
             raise ValidationError("ess_fraction", self.ess_fraction, "in (0, 1)")
         v.integer("max_annealing_steps", self.max_annealing_steps, minimum=1)
         v.positive("move_scale", self.move_scale)
+        v.integer("translate", self.translate, minimum=0)
         v.positive("cov_floor_m", self.cov_floor_m, allow_zero=True)
         if self.interpolation not in ("linear", "cubic", "quintic"):
             raise ValidationError("interpolation", self.interpolation, "linear, cubic or quintic")
@@ -299,7 +310,7 @@ def run_dpf(
             ess_hist[k - 1] = P.effective_sample_size(lw)
         else:
             X, lp, ll_new, lw, ess, steps = _anneal(
-                X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options
+                X, lw, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options
             )
             ess_hist[k - 1] = ess
             n_steps += steps
@@ -334,37 +345,54 @@ def _frozen_loglik(likelihood, centers, covs, gamma, agent_nodes, X, lw):
     or (a likelihood with ``exchange == "particles"``) their particle sets ``X``, ``lw``.
 
     A likelihood with a ``frozen`` method builds the function itself (the marginal EL
-    tabulates each link once per iteration over the range the particles ``X`` cover)."""
+    tabulates each link once per iteration over the range the particles ``X`` cover).
+    The function is ``fn(x, agents=None)``: ``x`` holds the rows of ``agents`` (all when
+    None), the form :func:`~phyloc.localization.particles.mh_moves` evaluates the old
+    likelihood in."""
     c, v = centers.copy(), covs.copy()
     if getattr(likelihood, "exchange", "moments") == "particles":
         beliefs = NodeBeliefs(c, agent_nodes, X, lw)
 
-        def fn(x):
+        def every_row(x):
             return likelihood.loglik(x, c, v, gamma=gamma, beliefs=beliefs)
 
-        return fn
-    if hasattr(likelihood, "frozen"):
-        tabulated = likelihood.frozen(X, c, v, gamma)
-        if tabulated is not None:
-            return tabulated
+    else:
+        if hasattr(likelihood, "frozen"):
+            fn = likelihood.frozen(X, c, v, gamma)
+            if fn is not None:
+                return fn
 
-    def fn(x):
-        return likelihood.loglik(x, c, v, gamma=gamma)
+        def every_row(x):
+            return likelihood.loglik(x, c, v, gamma=gamma)
+
+    def fn(x, agents=None):
+        if agents is None:
+            return every_row(x)
+        full = np.array(X, dtype=np.float64, copy=True)  # other rows: any valid particles
+        full[agents] = x
+        return every_row(full)[agents]
 
     return fn
 
 
-def _anneal(X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options):
-    """Move equally weighted particles of ``prior·exp(ll_old)`` to ``prior·exp(ll_new)``.
+def _anneal(X, lw, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options):
+    """Move the particles ``X`` (log weights ``lw``) of ``prior·exp(ll_old)`` to
+    ``prior·exp(ll_new)``.
 
-    Geometric bridge ``prior·exp(λ ll_new + (1 − λ) ll_old)``, λ: 0 → 1, each step as large as
-    keeps the effective sample size >= ``ess_fraction``·Q (bisection), followed by systematic
-    resampling and Metropolis–Hastings moves that leave the bridge target invariant. Returns
-    the moved particles with uniform weights, the smallest ESS seen and the number of steps.
+    First the translation transport (:func:`_translate`, ``options.translate`` iterations),
+    then the geometric bridge ``prior·exp(λ ll_new + (1 − λ) ll_old)``, λ: 0 → 1, each step
+    as large as keeps the effective sample size >= ``ess_fraction``·Q (bisection), followed
+    by systematic resampling and Metropolis–Hastings moves that leave the bridge target
+    invariant. Returns the moved particles with uniform weights, the smallest ESS seen and
+    the number of steps.
     """
     n_agents, Q, _ = X.shape
+    if options.translate > 0:
+        X, lp, ll_old, ll_new, old_fn = _translate(
+            X, lw, lp, ll_old, ll_new, old_fn, new_fn, logp, options.translate,
+            options.ess_fraction * Q,
+        )  # fmt: skip
     lam = np.zeros(n_agents)
-    lw = np.full((n_agents, Q), -np.log(Q))
     ess_min = np.full(n_agents, float(Q))
     steps = 0
     while np.any(lam < 1.0) and steps < options.max_annealing_steps:
@@ -392,6 +420,84 @@ def _anneal(X, lp, ll_old, ll_new, old_fn, new_fn, logp, rng, options):
             move_scale=options.move_scale,
         )
     return X, lp, ll_new, lw, ess_min, steps
+
+
+def _translate(X, lw, lp, ll_old, ll_new, old_fn, new_fn, logp, n_iter, ess_target):
+    """Translation transport: shift each agent's cloud rigidly towards the new target.
+
+    The particles ``X`` with log weights ``lw`` represent ``π_old = prior·exp(ll_old)``.
+    Shifted by ``s_a`` they represent ``π_old(x − s_a)``, and the importance weights
+    ``lw + log π_new(x + s_a) − log π_old(x)`` make them a weighted sample of ``π_new``
+    exactly (a translation has unit Jacobian). ``s_a`` starts at 0 and moves to the weighted
+    mean of the shifted cloud under these weights (mean shift), ``n_iter`` times for every
+    agent and up to ``4·n_iter`` times for agents whose best ESS is still below
+    ``ess_target`` and whose last shift exceeded half the cloud's width (a cloud far from a
+    narrow target advances by about its own width per iteration; one whose target is
+    narrower but not far has converged).
+    Each iteration evaluates the prior and ``new_fn`` once (``new_fn`` on the rows still
+    shifting). Per agent the shift with the largest ESS is kept when it beats no shift and
+    leaves the prior finite at every particle.
+
+    The bridge that follows runs from the shifted old target: the returned ``ll_old`` is
+    ``log π_old(x − s) − log prior(x)`` at the returned particles, and ``old_fn`` evaluates it
+    at other particles (``fn(x, agents=None)``). Agents left unshifted keep their values.
+    """
+    n_agents, _, dim = X.shape
+    base = lp + ll_old  # log π_old at the particles
+    w_old = np.exp(lw)
+    cur_lw = lw + ll_new - ll_old  # no shift: the prior cancels
+    best_ess = P.effective_sample_size(P.normalize_log_weights(cur_lw)[0])
+    best_s = np.zeros((n_agents, dim))
+    best_X, best_lp, best_ln = X, lp, ll_new
+    s = np.zeros((n_agents, dim))
+    cur_X = X
+    rows = np.arange(n_agents)
+    width = np.linalg.norm(X.std(axis=1), axis=1)
+    for k in range(4 * n_iter):
+        w = np.exp(P.normalize_log_weights(cur_lw[rows])[0])
+        step = np.einsum("aq,aqd->ad", w - w_old[rows], cur_X[rows])  # mean shift
+        s[rows] += step
+        cur_X = X + s[:, None, :]
+        lpp = logp(cur_X)[rows]
+        lnp = new_fn(cur_X[rows], rows)
+        cur_lw = cur_lw.copy()
+        cur_lw[rows] = lw[rows] + lpp + lnp - base[rows]
+        ess = P.effective_sample_size(P.normalize_log_weights(cur_lw[rows])[0])
+        better = (ess > best_ess[rows]) & np.all(np.isfinite(lpp), axis=1)
+        up = rows[better]
+        best_ess[up] = ess[better]
+        best_s[up] = s[up]
+        best_X = best_X.copy() if best_X is X else best_X
+        best_X[up] = cur_X[up]
+        best_lp = best_lp.copy() if best_lp is lp else best_lp
+        best_lp[up] = lpp[better]
+        best_ln = best_ln.copy() if best_ln is ll_new else best_ln
+        best_ln[up] = lnp[better]
+        if k + 1 >= n_iter:  # beyond n_iter: agents below the target whose cloud still travels
+            travels = np.linalg.norm(step, axis=1) > 0.5 * width[rows]
+            rows = rows[(best_ess[rows] < ess_target) & travels]
+            if rows.size == 0:
+                break
+    moved = np.any(best_s != 0.0, axis=1)
+    if not moved.any():
+        return X, lp, ll_old, ll_new, old_fn
+    ll_old = np.where(moved[:, None], base - best_lp, ll_old)  # log π_old(x − s) − log prior(x)
+    shift = best_s[:, None, :]
+    template = best_X
+
+    def shifted_old(x, agents=None):
+        idx = np.arange(n_agents) if agents is None else np.asarray(agents)
+        full = np.array(template, dtype=np.float64, copy=True)
+        full[idx] = x
+        back = full - shift
+        old = np.zeros((idx.size, x.shape[1])) if old_fn is None else old_fn(back[idx], idx)
+        # the prior at x − s against the prior at x (the bridge holds prior(x) separately);
+        # outside the prior's support at x the target is −inf whatever the old term says
+        with np.errstate(invalid="ignore"):
+            ratio = (logp(back) - logp(full))[idx]
+        return old + np.where(np.isnan(ratio), -np.inf, ratio)
+
+    return best_X, best_lp, ll_old, best_ln, shifted_old
 
 
 def _next_lambda(lw, delta, lam, ess_target):
