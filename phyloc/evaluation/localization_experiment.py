@@ -118,6 +118,7 @@ PRIOR_KEYS = (
     "gauge_extent_m",
     "init_pair_range",
     "init_robust_scale_m",
+    "init_restarts",
 )
 """``[localization]`` keys of the experiment's priors; every other key is a method option."""
 
@@ -131,7 +132,9 @@ class LocalizationSpec:
     uniform gauge priors [m]; ``init_pair_range`` (``"min"``, or ``"mean"``) how the
     truth-free start combines the two directions' correlation ranges of a pair and
     ``init_robust_scale_m`` (5 m; 0: plain SMACOF) the Cauchy scale of its robust
-    reweighting (:func:`~phyloc.localization.initialization.coarse_positions`). Every other
+    reweighting, ``init_restarts`` (default 10) the random SMACOF starts it adds to the MDS
+    start, the lowest robust cost winning
+    (:func:`~phyloc.localization.initialization.coarse_positions`). Every other
     key is an option of the direct family (:class:`~phyloc.localization.DirectOptions`: the
     :class:`~phyloc.localization.DPFOptions` fields, ``outlier_nats`` …), kept as written in
     ``options``; a subtable
@@ -147,11 +150,13 @@ class LocalizationSpec:
     method_options: dict = field(default_factory=dict)
     init_pair_range: str = "min"
     init_robust_scale_m: float = 5.0
+    init_restarts: int = 10
 
     def __post_init__(self):
         v.positive("localization.prior_std_m", self.prior_std_m)
         v.choice("localization.init_pair_range", self.init_pair_range, PAIR_COMBINE)
         v.positive("localization.init_robust_scale_m", self.init_robust_scale_m, allow_zero=True)
+        v.integer("localization.init_restarts", self.init_restarts, minimum=0)
         v.positive("localization.informed_std_m", self.informed_std_m)
         v.positive("localization.gauge_extent_m", self.gauge_extent_m)
         object.__setattr__(self, "options", dict(self.options))
@@ -244,6 +249,8 @@ def _priors(init, net, links, corr, lspec, Q, rng):
         robust = {
             "combine": lspec.init_pair_range,
             "robust_scale_m": lspec.init_robust_scale_m or None,
+            "n_restarts": lspec.init_restarts,
+            "rng": rng,
         }
         try:
             sol = coarse_positions(

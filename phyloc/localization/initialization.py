@@ -441,6 +441,95 @@ def _cauchy_weights(D, W, X, c):
     return W / (1.0 + (r / c) ** 2)
 
 
+def _cauchy_cost(D_row, w_row, X_other, points, c):
+    """``Σ_j w_j log(1 + ((δ_j − ‖x − x_j‖)/c)²)`` at each of ``points [m, dim]``."""
+    r = D_row[None, :] - np.linalg.norm(points[:, None, :] - X_other[None, :, :], axis=-1)
+    return np.log1p((r / c) ** 2) @ w_row
+
+
+def _robust_fit(D, measured, X, c, rounds, n_iter, tol):
+    """``rounds`` of Cauchy-reweighted SMACOF from ``X``. Returns ``(X, W, stress, cost)``,
+    ``cost`` the total Cauchy cost ``Σ_{i<j} w_ij log(1 + (r_ij/c)²)`` over the measured
+    pairs (the objective the reweighting descends)."""
+    W, s = measured, 0.0
+    for _ in range(rounds):
+        W = _cauchy_weights(D, measured, X, c)
+        X, s = smacof(D, W, X, n_iter=n_iter, tol=tol)
+    r = D - _pairwise(X)
+    cost = float(np.sum(np.triu(measured * np.log1p((r / c) ** 2), 1)))
+    return X, W, s, cost
+
+
+def relocate_nodes(D, W, X, c, *, fixed=None, n_grid=41, min_gain=2.0, n_passes=2):
+    """Move nodes that a robust SMACOF left in a wrong basin to their best position.
+
+    A node whose correct ranges are outvoted early (e.g. two ranges biased by 200 m pull it
+    out of the network before the reweighting starts) ends in a local minimum where its
+    *correct* ranges look like the outliers. Per node, in order of decreasing robust cost, the
+    Cauchy cost ``Σ_j w_ij log(1 + ((δ_ij − ‖x − x_j‖)/c)²)`` (the objective whose
+    reweighting :func:`coarse_positions` iterates) is evaluated on a ``n_grid``-per-axis grid
+    over the other nodes' bounding box widened by a quarter of its size per side, then on a
+    grid of the same size spanning two cells around the best point; the node moves to the
+    best point when that lowers its cost by more than ``min_gain``. Nodes with fewer than
+    ``dim + 1`` measured pairs (not determined) and ``fixed`` nodes stay.
+
+    Parameters
+    ----------
+    D, W : [n, n] float64
+        Pair ranges and (measured, not reweighted) weights of :func:`range_matrix`.
+    X : [n, dim] float64
+        Configuration from robust SMACOF.
+    c : float
+        Cauchy scale [m].
+    fixed : [n] bool, optional
+        Nodes never moved (anchors).
+
+    Returns
+    -------
+    X : [n, dim] float64
+        The configuration with the moved nodes (a copy).
+    moved : int array
+        The nodes moved, in the order they moved.
+    """
+    X = np.array(X, dtype=np.float64, copy=True)
+    n, dim = X.shape
+    keep = np.zeros(n, bool) if fixed is None else np.asarray(fixed, bool)
+    per_axis = n_grid if dim == 2 else int(np.ceil(n_grid ** (2.0 / 3.0)))
+
+    def grid_of(lo, hi):
+        axes = [np.linspace(a, b, per_axis) for a, b in zip(lo, hi, strict=True)]
+        return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, dim)
+
+    moved = []
+    for _ in range(n_passes):
+        cost = np.array(
+            [_cauchy_cost(D[i], W[i], X, X[i][None], c)[0] if W[i].any() else 0.0 for i in range(n)]
+        )
+        changed = False
+        for i in np.argsort(-cost):
+            nb = np.flatnonzero(W[i] > 0)
+            if keep[i] or nb.size < dim + 1:
+                continue
+            others = np.delete(np.arange(n), i)
+            lo, hi = X[others].min(axis=0), X[others].max(axis=0)
+            pad = 0.25 * np.maximum(hi - lo, c)
+            grid = grid_of(lo - pad, hi + pad)
+            cell = (hi - lo + 2 * pad) / (per_axis - 1)
+            g = _cauchy_cost(D[i, nb], W[i, nb], X[nb], grid, c)
+            x0 = grid[int(np.argmin(g))]
+            fine = grid_of(x0 - 2 * cell, x0 + 2 * cell)
+            g = _cauchy_cost(D[i, nb], W[i, nb], X[nb], fine, c)
+            best = int(np.argmin(g))
+            now = _cauchy_cost(D[i, nb], W[i, nb], X[nb], X[i][None], c)[0]
+            if g[best] < now - min_gain:
+                X[i] = fine[best]
+                moved.append(int(i))
+                changed = True
+        if not changed:
+            break
+    return X, np.asarray(moved, dtype=np.int64)
+
+
 # -- coarse network solution --------------------------------------------------------------------
 @dataclass(frozen=True)
 class CoarseSolution:
@@ -503,7 +592,9 @@ def coarse_positions(
     2. :func:`classical_mds` (missing pairs by shortest paths) as the start of weighted
        :func:`smacof` on the measured pairs only. With ``n_restarts > 0``, as many extra
        SMACOF runs start from uniform random configurations (drawn with ``rng``) in a box the
-       size of the largest range; the lowest stress wins.
+       size of the largest range; the lowest stress wins (with ``robust_scale_m``: every start
+       goes through the robust rounds below and the lowest robust cost wins — folds of a
+       sparse urban network that the MDS start falls into are left this way).
     3. With anchors: the solution is rigidly fitted (rotation, translation and reflection —
        Kabsch) onto the known anchor positions, the anchor rows are set exactly, and SMACOF
        refines the agents with the anchors held fixed. With ``>= dim + 1`` affinely independent
@@ -520,7 +611,9 @@ def coarse_positions(
     disagrees with the rest of the network by many ``c`` — an NLOS-biased range, or a false
     peak — stops pulling the configuration. In dense urban networks this is what keeps the
     start within a metre (:doc:`DiPNet Fig. 5 </guide/experiments>`); with exact or LOS ranges
-    it changes nothing (every residual is ~0).
+    it changes nothing (every residual is ~0). A node the reweighting left in a wrong basin is
+    then moved to the best point of its own robust cost (:func:`relocate_nodes`) and the
+    rounds are repeated (kept when the total robust cost drops).
 
     No true position is used. A node that is connected but not rigidly determined (e.g. two
     ranges in 2-D) gets one of its ambiguous positions.
@@ -616,17 +709,28 @@ def coarse_positions(
 
     X0 = classical_mds(D, d, W)
     X, s = smacof(D, W, X0, n_iter=n_iter, tol=tol)
+    starts = [X]
     if restarts:
         extent = float(D[W > 0].max(initial=1.0))
         for _ in range(restarts):
             Xr, sr = smacof(D, W, rng.uniform(-extent, extent, size=(n, d)), n_iter=n_iter, tol=tol)
+            starts.append(Xr)
             if sr < s:
                 X, s = Xr, sr
-    if robust_scale_m is not None:
-        measured = W
-        for _ in range(rounds):
-            W = _cauchy_weights(D, measured, X, c)
-            X, s = smacof(D, W, X, n_iter=n_iter, tol=tol)
+    if robust_scale_m is not None:  # every start robustly; the lowest robust cost wins
+        measured, best = W, None
+        for Xs in starts:
+            fit = _robust_fit(D, measured, Xs, c, rounds, n_iter, tol)
+            if best is None or fit[3] < best[3]:
+                best = fit
+        X, W, s = best[:3]
+        X, moved = relocate_nodes(D, measured, X, c, fixed=anchor if n_anchor else None)
+        if moved.size:  # refine the repaired configuration the same way
+            fit = _robust_fit(D, measured, X, c, rounds, n_iter, tol)
+            if fit[3] < best[3]:
+                X, W, s = fit[:3]
+            else:
+                X = best[0]
 
     if n_anchor:
         R, t = kabsch(X[anchor], A)
