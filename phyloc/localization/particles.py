@@ -75,7 +75,8 @@ def effective_sample_size(lw) -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> effective_sample_size(np.log(np.array([[0.25] * 4, [1.0, 0, 0, 0]]))).tolist()
+    >>> lw = np.log(np.array([[0.25] * 4, [1.0, 1e-300, 1e-300, 1e-300]]))
+    >>> effective_sample_size(lw).tolist()
     [4.0, 1.0]
     """
     w = np.exp(lw)
