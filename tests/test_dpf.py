@@ -1,6 +1,7 @@
 """The equivalent-likelihood DPF: DiPNet (DiPNet eqs. (25)–(28)) and its safeguards."""
 
 import math
+import types
 
 import numba
 import numpy as np
@@ -121,8 +122,9 @@ def test_env_eq26_and_erv_eq18_by_hand(rng):
 
 
 # -- kernels against their twins -----------------------------------------------------------------
-def test_loglik_kernels_match_numpy_twins(rng):
-    n_agents, Q, dim, n_nodes = 3, 50, 2, 6
+@pytest.mark.parametrize("dim", [1, 2, 3])  # the planar and spatial distance loops are unrolled
+def test_loglik_kernels_match_numpy_twins(rng, dim):
+    n_agents, Q, n_nodes = 3, 50, 6
     X = rng.uniform(0, 100, (n_agents, Q, dim))
     centers = rng.uniform(0, 100, (n_nodes, dim))
     offsets = np.array([0, 2, 2, 5])  # agent 1 has no links
@@ -140,6 +142,29 @@ def test_loglik_kernels_match_numpy_twins(rng):
     sub = np.empty((2, Q))  # a subset of the agents, in any order
     K.gauss_loglik_kernel(X[[2, 0]], np.array([2, 0]), offsets, nb, r, iv, centers, sub)
     np.testing.assert_array_equal(sub, out[[2, 0]])
+
+
+def test_log_normalize_kernel_matches_scipy_and_falls_back_to_uniform(rng):
+    """``normalize_log_weights`` (``log_normalize_kernel``) against ``scipy.special.logsumexp``
+    on ordinary and extreme rows; rows with no finite weight, a NaN or a +inf become uniform
+    and are counted; nothing non-finite but −inf leaks."""
+    from scipy.special import logsumexp
+
+    lw = rng.normal(0, 50, (6, 300))
+    lw[1, ::3] = -np.inf  # some zero weights
+    lw[1] -= 2000.0  # every exp() would underflow without the max shift
+    lw[2] += 2000.0  # … or overflow
+    lw[3] = -np.inf  # no finite weight
+    lw[4, 7] = np.nan
+    lw[5, 0] = np.inf
+    out, bad = P.normalize_log_weights(lw)
+    assert bad == 3
+    for a in (0, 1, 2):
+        ref = lw[a] - logsumexp(lw[a])
+        np.testing.assert_allclose(out[a][np.isfinite(ref)], ref[np.isfinite(ref)], atol=1e-12)
+        np.testing.assert_array_equal(np.isfinite(out[a]), np.isfinite(ref))
+        assert np.exp(out[a]).sum() == pytest.approx(1.0, rel=1e-12)
+    np.testing.assert_array_equal(out[3:], -np.log(300))
 
 
 def test_systematic_resampling_matches_twin_and_textbook(rng):
@@ -274,10 +299,11 @@ def test_same_seed_same_result_with_any_thread_count():
 
 
 # -- the marginal equivalent likelihood ---------------------------------------------------------
-def test_mixture_kernel_matches_numpy_twin(rng):
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_mixture_kernel_matches_numpy_twin(rng, dim):
     from phyloc.localization._kernels import mixture_loglik_kernel
 
-    n_agents, Q, dim = 3, 40, 2
+    n_agents, Q = 3, 40
     X = rng.uniform(0, 100, (n_agents, Q, dim))
     centers = rng.uniform(0, 100, (6, dim))
     offsets = np.array([0, 2, 2, 4])
@@ -322,13 +348,15 @@ def random_mixture(rng, n_agents=3, n_centers=7, dim=2):
     return centers, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor
 
 
-def test_tabulated_mixture_kernels_match_their_twins(rng):
-    """Grid, table and interpolation kernels against the NumPy twins, on an agent subset."""
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_tabulated_mixture_kernels_match_their_twins(rng, dim):
+    """Grid, table and interpolation kernels against the NumPy twins, on an agent subset: the
+    kernel's power-basis cubic pieces (Horner) against the twin's Lagrange weights."""
     from phyloc.localization.likelihoods import TABLE_MARGIN, TABLE_MAX_POINTS, TABLE_RESOLUTION
 
     for _trial in range(5):
-        centers, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor = random_mixture(rng)
-        X = centers[:3, None, :] + rng.normal(0, 4.0, (3, 60, 2))
+        centers, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor = random_mixture(rng, dim=dim)
+        X = centers[:3, None, :] + rng.normal(0, 4.0, (3, 60, dim))
         grid_args = (X, offsets, nb, pk_off, pk_h, pk_c, s2, floor, 2.0, centers)
         consts = (TABLE_RESOLUTION, TABLE_MAX_POINTS, TABLE_MARGIN)
         n_links = nb.size
@@ -339,15 +367,16 @@ def test_tabulated_mixture_kernels_match_their_twins(rng):
         np.testing.assert_allclose(lo, ref[0], rtol=1e-12)
         np.testing.assert_allclose(inv_h, ref[1], rtol=1e-12)
         assert count.sum() > 0
+        count[0] = 0  # a link with peaks but no grid: evaluated exactly everywhere
         t_off = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
-        table = np.empty(count.sum())
+        table = np.empty((count.sum(), 4))
         K.mixture_table_kernel(
             offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, table
         )
         ref_table = mixture_table_numpy(pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count)
-        np.testing.assert_allclose(table, ref_table, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(table[:, 0], ref_table, rtol=1e-10, atol=1e-12)
         agents = np.array([2, 0])
-        Y = X[agents] + rng.normal(0, 1.0, (2, 60, 2))
+        Y = X[agents] + rng.normal(0, 1.0, (2, 60, dim))
         Y[0, :5] += 300.0  # beyond every grid: evaluated exactly
         out = np.empty((2, 60))
         tail = (2.0, 0.7, centers, lo, inv_h, count)
@@ -355,7 +384,7 @@ def test_tabulated_mixture_kernels_match_their_twins(rng):
             Y, agents, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, *tail, t_off, table, out
         )
         twin = mixture_tabulated_numpy(
-            Y, agents, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, *tail, table
+            Y, agents, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, *tail, table[:, 0]
         )
         np.testing.assert_allclose(out, twin, rtol=1e-10, atol=1e-9)
 
@@ -391,7 +420,7 @@ def test_tabulated_mixture_is_within_a_millinat_of_the_exact_one(rng):
             count,
         )
         t_off = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
-        table = np.empty(count.sum())
+        table = np.empty((count.sum(), 4))
         K.mixture_table_kernel(
             offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, table
         )
@@ -570,6 +599,40 @@ def test_covariance_floor_is_the_efim_crb(rng):
     np.testing.assert_allclose(out[0], 100.0 * np.eye(2))
     big = np.array([np.diag([50.0, 60.0])])
     np.testing.assert_array_equal(_floor(big, g, pos, np.array([0]), 1e-3), big)
+
+
+def test_covariance_floor_of_many_agents_matches_the_per_agent_efim(rng):
+    """The floor of every agent at once against :func:`efim` / :func:`position_crb` agent by
+    agent: random networks with an agent without links, one with a single link (singular J),
+    a neighbour coincident with its agent, and covariances above and below the floor."""
+    from phyloc.analysis.efim import efim, position_crb
+
+    for dim in (2, 3):
+        n_agents, n_nodes = 5, 9
+        agent_nodes = np.arange(n_agents)
+        centers = rng.uniform(0, 50, (n_nodes, dim))
+        n_links = np.array([4, 0, 1, 6, 3])
+        offsets = np.concatenate([[0], np.cumsum(n_links)])
+        tx = np.concatenate([rng.choice(np.delete(np.arange(n_nodes), a), k, replace=False)
+                             for a, k in enumerate(n_links)])  # fmt: skip
+        centers[tx[offsets[3]]] = centers[3]  # coincident neighbour of agent 3
+        nu = rng.uniform(0.1, 50.0, tx.size)
+        lik = types.SimpleNamespace(csr=types.SimpleNamespace(offsets=offsets, tx=tx), nu=nu)
+        A = rng.normal(0, 0.1, (n_agents, dim, dim))
+        cov = A @ np.swapaxes(A, 1, 2)
+        cov[4] = 9.0 * np.eye(dim)  # above every floor: unchanged
+        out = _floor(cov, lik, centers, agent_nodes, 0.05)
+        for a in range(n_agents):
+            j0, j1 = offsets[a], offsets[a + 1]
+            crb = 0.0
+            if j1 > j0:
+                crb = float(position_crb(efim(centers[a], centers[tx[j0:j1]], nu[j0:j1]))) / dim
+            var = max(0.05**2, crb if np.isfinite(crb) else 0.0)
+            low = np.linalg.eigvalsh(cov[a]).min()
+            ref = cov[a] + (var - low) * np.eye(dim) if low < var else cov[a]
+            np.testing.assert_allclose(out[a], ref, rtol=1e-12, atol=1e-15)
+        np.testing.assert_array_equal(out[4], cov[4])
+        assert np.isfinite(out).all()
 
 
 def test_outlier_floor_bounds_the_evidence_of_one_link(rng):

@@ -22,6 +22,34 @@ from phyloc.phy._kernels import _lagrange_eval
 from phyloc.ranging._kernels import _correlate_derivs, _newton_peak
 
 
+@njit(cache=True, inline="always")
+def _link_distances(particles, r, c, ways, xs):
+    """``xs[q] = ways·‖particles[r, q] − c‖`` for every particle of row ``r``. The planar and
+    spatial cases are written out so the loop over particles vectorizes (a loop over a
+    run-time ``dim`` inside it does not)."""
+    Q, dim = particles.shape[1], particles.shape[2]
+    if dim == 2:
+        c0, c1 = c[0], c[1]
+        for q in range(Q):
+            t0 = particles[r, q, 0] - c0
+            t1 = particles[r, q, 1] - c1
+            xs[q] = ways * np.sqrt(t0 * t0 + t1 * t1)
+    elif dim == 3:
+        c0, c1, c2 = c[0], c[1], c[2]
+        for q in range(Q):
+            t0 = particles[r, q, 0] - c0
+            t1 = particles[r, q, 1] - c1
+            t2 = particles[r, q, 2] - c2
+            xs[q] = ways * np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    else:
+        for q in range(Q):
+            acc = 0.0
+            for k in range(dim):
+                t = particles[r, q, k] - c[k]
+                acc += t * t
+            xs[q] = ways * np.sqrt(acc)
+
+
 @njit(cache=True, parallel=True)
 def direct_loglik_kernel(
     particles, offsets, nb_node, nb_row, nb_scale, centers, values, inv_h, order, out
@@ -59,21 +87,19 @@ def gauss_loglik_kernel(particles, agents, offsets, nb_node, ranges, inv_var, ce
     The Gaussian ranging model with the equivalent ranging variance (ERV) of DiPNet eq. (18):
     ``1/inv_var = var_r + σ²_{v→uv}`` (times 1/γ when tempered).
     """
-    n_rows, Q, dim = particles.shape
+    n_rows, Q, _ = particles.shape
     for r in prange(n_rows):
         a = agents[r]
+        xs = np.empty(Q)
         for q in range(Q):
             out[r, q] = 0.0
         for j in range(offsets[a], offsets[a + 1]):
             c = centers[nb_node[j]]
             rj = ranges[j]
             w = 0.5 * inv_var[j]
+            _link_distances(particles, r, c, 1.0, xs)
             for q in range(Q):
-                acc = 0.0
-                for k in range(dim):
-                    t = particles[r, q, k] - c[k]
-                    acc += t * t
-                e = np.sqrt(acc) - rj
+                e = xs[q] - rj
                 out[r, q] -= w * e * e
 
 
@@ -126,6 +152,53 @@ def next_lambda_kernel(lw, delta, lam, ess_target, n_bisect, out):
                     hi = mid
             step = max(lo, 1e-6 * room)
         out[a] = min(lam[a] + step, 1.0)
+
+
+@njit(cache=True)
+def log_normalize_kernel(lw, out):
+    """``out[a] = lw[a] − log Σ_q exp(lw[a, q])`` per row (max-shifted log-sum-exp); a row
+    with no finite weight, a NaN or a +inf becomes uniform (``−log Q``). Returns how many
+    rows fell back to uniform."""
+    n, Q = lw.shape
+    bad = 0
+    uniform = -np.log(Q)
+    for a in range(n):
+        m = -np.inf
+        ok = True
+        for q in range(Q):
+            x = lw[a, q]
+            if x != x or x == np.inf:
+                ok = False
+            elif x > m:
+                m = x
+        if ok and m > -np.inf:
+            s = 0.0
+            for q in range(Q):
+                s += np.exp(lw[a, q] - m)
+            lse = m + np.log(s)
+            for q in range(Q):
+                out[a, q] = lw[a, q] - lse
+        else:
+            bad += 1
+            for q in range(Q):
+                out[a, q] = uniform
+    return bad
+
+
+@njit(cache=True)
+def gaussian_log_prior_kernel(x, centers, std, out):
+    """``out[a, q] = −‖x[a, q] − c_a‖²/(2σ_a²) − (dim/2)·ln(2πσ_a²)``: the isotropic Gaussian
+    prior of each agent at its particles."""
+    n, Q, dim = x.shape
+    for a in range(n):
+        h = 0.5 / (std[a] * std[a])
+        norm = -0.5 * dim * np.log(2.0 * np.pi * std[a] * std[a])
+        for q in range(Q):
+            acc = 0.0
+            for k in range(dim):
+                t = x[a, q, k] - centers[a, k]
+                acc += t * t
+            out[a, q] = norm - h * acc
 
 
 @njit(cache=True)
@@ -440,7 +513,7 @@ def mixture_loglik_kernel(
     below the floor at ``x`` are skipped (they cannot change the sum in double precision),
     so a particle pays one exponential per peak within reach, not per peak of the link.
     """
-    n_agents, Q, dim = particles.shape
+    n_agents, Q, _ = particles.shape
     max_p = 1
     for j in range(pk_off.size - 1):
         max_p = max(max_p, pk_off[j + 1] - pk_off[j])
@@ -449,19 +522,18 @@ def mixture_loglik_kernel(
         half_prec = np.empty(max_p)
         reach2 = np.empty(max_p)
         keep = np.empty(max_p, np.int64)
+        xs = np.empty(Q)
         for q in range(Q):
             out[a, q] = 0.0
         for j in range(offsets[a], offsets[a + 1]):
             c = centers[nb_node[j]]
             n = _mixture_link_setup(j, pk_off, pk_h, pk_c, s2, floor, base, half_prec, reach2, keep)
             fl = floor[j]
+            _link_distances(particles, a, c, ways, xs)
             for q in range(Q):
-                acc = 0.0
-                for k in range(dim):
-                    t = particles[a, q, k] - c[k]
-                    acc += t * t
-                x = ways * np.sqrt(acc)
-                out[a, q] += gamma * _mixture_eval(x, fl, n, keep, pk_d, base, half_prec, reach2)
+                out[a, q] += gamma * _mixture_eval(
+                    xs[q], fl, n, keep, pk_d, base, half_prec, reach2
+                )
 
 
 @njit(cache=True, parallel=True)
@@ -492,7 +564,7 @@ def mixture_grid_kernel(
     (a component's slope where it crosses the floor is ``2√(hp·(base − floor))``). A link
     that needs more than ``max_points`` gets no table (``count = 0``).
     """
-    n_agents, Q, dim = particles.shape
+    n_agents, Q, _ = particles.shape
     max_p = 1
     for j in range(pk_off.size - 1):
         max_p = max(max_p, pk_off[j + 1] - pk_off[j])
@@ -501,6 +573,7 @@ def mixture_grid_kernel(
         half_prec = np.empty(max_p)
         reach2 = np.empty(max_p)
         keep = np.empty(max_p, np.int64)
+        xs = np.empty(Q)
         for j in range(offsets[a], offsets[a + 1]):
             c = centers[nb_node[j]]
             n = _mixture_link_setup(j, pk_off, pk_h, pk_c, s2, floor, base, half_prec, reach2, keep)
@@ -509,14 +582,10 @@ def mixture_grid_kernel(
                 steep = max(steep, np.sqrt(half_prec[i] * max(base[i] - floor[j], 1.0)))
             x_lo = np.inf
             x_hi = -np.inf
+            _link_distances(particles, a, c, ways, xs)
             for q in range(Q):
-                acc = 0.0
-                for k in range(dim):
-                    t = particles[a, q, k] - c[k]
-                    acc += t * t
-                x = ways * np.sqrt(acc)
-                x_lo = min(x_lo, x)
-                x_hi = max(x_hi, x)
+                x_lo = min(x_lo, xs[q])
+                x_hi = max(x_hi, xs[q])
             count[j] = 0
             lo[j] = 0.0
             inv_h[j] = 0.0
@@ -538,8 +607,12 @@ def mixture_grid_kernel(
 def mixture_table_kernel(
     offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, out
 ):
-    """Fill the grids of ``mixture_grid_kernel``: ``out[t_off[j] + i]`` = the smoothed
-    log-likelihood of link ``j`` at distance ``lo[j] + i/inv_h[j]`` (tempering not applied)."""
+    """Fill the grids of ``mixture_grid_kernel`` as cubic pieces: ``out[t_off[j] + i, 0]`` is
+    the smoothed log-likelihood ``y_i`` of link ``j`` at distance ``lo[j] + i/inv_h[j]``
+    (tempering not applied), and ``out[t_off[j] + i, 0:4]`` for ``1 <= i <= count[j] − 3``
+    the power-basis coefficients ``c_0 + c_1 f + c_2 f² + c_3 f³`` of the 4-point Lagrange
+    cubic through ``y_{i−1} … y_{i+2}`` on the cell ``[i, i + 1)`` (``_cubic_cell``); the
+    other rows hold ``y_i`` and zeros."""
     n_agents = offsets.size - 1
     max_p = 1
     for j in range(pk_off.size - 1):
@@ -550,29 +623,33 @@ def mixture_table_kernel(
         reach2 = np.empty(max_p)
         keep = np.empty(max_p, np.int64)
         for j in range(offsets[a], offsets[a + 1]):
-            if count[j] == 0:
+            m = count[j]
+            if m == 0:
                 continue
             n = _mixture_link_setup(j, pk_off, pk_h, pk_c, s2, floor, base, half_prec, reach2, keep)
             h = 1.0 / inv_h[j]
-            for i in range(count[j]):
+            t0 = t_off[j]
+            for i in range(m):
                 x = lo[j] + i * h
-                out[t_off[j] + i] = _mixture_eval(
-                    x, floor[j], n, keep, pk_d, base, half_prec, reach2
-                )
+                out[t0 + i, 0] = _mixture_eval(x, floor[j], n, keep, pk_d, base, half_prec, reach2)
+                for k in range(1, 4):
+                    out[t0 + i, k] = 0.0
+            for i in range(1, m - 2):
+                _cubic_cell(
+                    out[t0 + i - 1, 0], out[t0 + i, 0], out[t0 + i + 1, 0], out[t0 + i + 2, 0],
+                    out[t0 + i],
+                )  # fmt: skip
 
 
 @njit(cache=True)
-def _cubic4(y, i, f):
-    """4-point Lagrange interpolation of ``y`` at ``i + f`` from ``y[i−1 … i+2]``, f in [0, 1)."""
-    fm = f - 1.0
-    fp = f + 1.0
-    f2 = f - 2.0
-    return (
-        -f * fm * f2 * (1.0 / 6.0) * y[i - 1]
-        + fp * fm * f2 * 0.5 * y[i]
-        - fp * f * f2 * 0.5 * y[i + 1]
-        + fp * f * fm * (1.0 / 6.0) * y[i + 2]
-    )
+def _cubic_cell(ym, y0, y1, y2, c):
+    """Power-basis coefficients of the cubic through ``(−1, ym), (0, y0), (1, y1), (2, y2)``:
+    ``p(f) = c[0] + c[1] f + c[2] f² + c[3] f³`` (the 4-point Lagrange interpolant of the cell
+    ``[0, 1)``, evaluated by Horner's rule in 3 multiply-adds instead of 4 weights)."""
+    c[0] = y0
+    c[1] = -ym / 3.0 - 0.5 * y0 + y1 - y2 / 6.0
+    c[2] = 0.5 * (ym + y1) - y0
+    c[3] = (y2 - ym) / 6.0 + 0.5 * (y0 - y1)
 
 
 @njit(cache=True, parallel=True)
@@ -598,13 +675,16 @@ def mixture_tabulated_kernel(
     out,
 ):
     """``mixture_loglik_kernel`` with each link's smoothed log-likelihood read from its grid
-    (4-point Lagrange, exact for the parabola of a lone component) where the distance lies
-    inside the grid, and evaluated exactly elsewhere (and on links without a grid).
+    (the cubic pieces of ``mixture_table_kernel``: 4-point Lagrange, exact for the parabola of
+    a lone component) where the distance lies inside the grid, and evaluated exactly
+    elsewhere (and on links without a grid).
 
     Row ``r`` of ``particles`` and ``out`` belongs to agent ``agents[r]`` (a subset of the
-    agents may be evaluated).
+    agents may be evaluated). Per link, one pass computes every particle's distance and cell
+    (indices clamped into the grid, so the pass has no branch and vectorizes), a second reads
+    the cubic of each cell, and only particles outside the grid are then evaluated exactly.
     """
-    n_rows, Q, dim = particles.shape
+    n_rows, Q, _ = particles.shape
     max_p = 1
     for j in range(pk_off.size - 1):
         max_p = max(max_p, pk_off[j + 1] - pk_off[j])
@@ -615,6 +695,9 @@ def mixture_tabulated_kernel(
         reach2 = np.empty(max_p)
         keep = np.empty(max_p, np.int64)
         xs = np.empty(Q)
+        cell = np.empty(Q, np.int64)
+        frac = np.empty(Q)
+        val = np.empty(Q)
         for q in range(Q):
             out[r, q] = 0.0
         for j in range(offsets[a], offsets[a + 1]):
@@ -626,24 +709,36 @@ def mixture_tabulated_kernel(
                     out[r, q] += gamma * fl
                 continue
             m = count[j]
+            _link_distances(particles, r, c, ways, xs)
+            if m == 0:  # no grid: exact everywhere
+                for q in range(Q):
+                    out[r, q] += gamma * _mixture_eval(
+                        xs[q], fl, n, keep, pk_d, base, half_prec, reach2
+                    )
+                continue
             x0 = lo[j]
             ih = inv_h[j]
-            y = table[t_off[j] : t_off[j] + m]
-            for q in range(Q):  # distances first: a loop the compiler vectorizes
-                acc = 0.0
-                for k in range(dim):
-                    t = particles[r, q, k] - c[k]
-                    acc += t * t
-                xs[q] = ways * np.sqrt(acc)
-            top = m - 2.0  # i = int(u) <= m − 3
+            top = m - 2.0  # inside: 1 <= u < m − 2, cell i = int(u) in 1 … m − 3
+            t0 = t_off[j]
+            n_out = 0
             for q in range(Q):
                 u = (xs[q] - x0) * ih
-                if u >= 1.0 and u < top:
-                    i = int(u)
-                    val = _cubic4(y, i, u - i)
-                else:
-                    val = _mixture_eval(xs[q], fl, n, keep, pk_d, base, half_prec, reach2)
-                out[r, q] += gamma * val
+                n_out += (u < 1.0) | (u >= top)
+                uc = min(max(u, 1.0), top)
+                i = min(int(uc), m - 3)
+                cell[q] = t0 + i
+                frac[q] = uc - i
+            for q in range(Q):
+                f = frac[q]
+                i = cell[q]
+                val[q] = table[i, 0] + f * (table[i, 1] + f * (table[i, 2] + f * table[i, 3]))
+            if n_out > 0:
+                for q in range(Q):
+                    u = (xs[q] - x0) * ih
+                    if not (u >= 1.0 and u < top):
+                        val[q] = _mixture_eval(xs[q], fl, n, keep, pk_d, base, half_prec, reach2)
+            for q in range(Q):
+                out[r, q] += gamma * val[q]
 
 
 @njit(cache=True, parallel=True)

@@ -41,6 +41,7 @@ from scipy.sparse import csgraph
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
+from phyloc.localization import _kernels
 from phyloc.network.geometry import kabsch
 
 INFORMED_START_STD_M = 10.0
@@ -824,9 +825,14 @@ def gaussian_log_prior(particles, centers, std_m) -> np.ndarray:
             "particles", f"array of shape {x.shape}", f"must be [{c.shape[0]}, Q, {c.shape[1]}]"
         )
     s = _std_per_agent(std_m, c.shape[0])
-    sq = np.sum((x - c[:, None, :]) ** 2, axis=2)
-    dim = c.shape[1]
-    return -0.5 * sq / s[:, None] ** 2 - 0.5 * dim * np.log(2.0 * np.pi * s[:, None] ** 2)
+    out = np.empty(x.shape[:2])
+    _kernels.gaussian_log_prior_kernel(
+        np.ascontiguousarray(x, dtype=np.float64),
+        np.ascontiguousarray(c, dtype=np.float64),
+        np.ascontiguousarray(s, dtype=np.float64),
+        out,
+    )
+    return out
 
 
 def informed_centers(true_positions, std_m=INFORMED_START_STD_M, *, rng) -> np.ndarray:

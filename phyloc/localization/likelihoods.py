@@ -416,7 +416,7 @@ class MarginalDirectLikelihood:
             count,
         )
         t_off = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
-        table = np.empty(int(count.sum()))
+        table = np.empty((int(count.sum()), 4))  # cubic pieces
         K.mixture_table_kernel(
             self.csr.offsets,
             self.pk_off,

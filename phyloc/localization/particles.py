@@ -20,7 +20,6 @@ PF-BP: the particle-flow BP paper, eq. (32) (regularization by Gaussian jitter).
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import logsumexp
 
 from phyloc.localization import _kernels as K
 
@@ -47,14 +46,10 @@ def normalize_log_weights(lw) -> tuple[np.ndarray, int]:
     >>> np.exp(lw).round(3).tolist(), bad
     ([[0.5, 0.5], [0.5, 0.5]], 1)
     """
-    lse = logsumexp(lw, axis=1, keepdims=True)
-    bad = ~np.isfinite(lse[:, 0])
-    with np.errstate(invalid="ignore"):  # −inf − (−inf) on rows replaced just below
-        out = lw - lse
-    if bad.any():
-        out[bad] = -np.log(lw.shape[1])
-    out[~np.isfinite(out)] = -np.inf
-    return out, int(bad.sum())
+    lw = np.ascontiguousarray(lw, dtype=np.float64)
+    out = np.empty_like(lw)
+    bad = K.log_normalize_kernel(lw, out)
+    return out, int(bad)
 
 
 def weighted_moments(particles, lw) -> tuple[np.ndarray, np.ndarray]:

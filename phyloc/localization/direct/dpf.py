@@ -59,7 +59,7 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc._validate import check_keys
-from phyloc.analysis.efim import efim, position_crb
+from phyloc.analysis.efim import direction_vectors, position_crb
 from phyloc.errors import ValidationError
 from phyloc.localization import _kernels as K
 from phyloc.localization import particles as P
@@ -206,28 +206,30 @@ class DPFResult:
 def _floor(cov, likelihood, centers, agent_nodes, floor_m):
     """Add the covariance floor: max(floor², CRB_u/dim) per axis.
 
-    ``CRB_u = tr J_u⁻¹`` from the EFIM of DiPNet eq. (17) (:func:`phyloc.analysis.efim.efim`,
-    neighbours at their published means, the links' ranging information ``likelihood.nu``);
-    a singular ``J_u`` (no links, or links that leave a direction undetermined) adds no CRB
-    term.
+    ``CRB_u = tr J_u⁻¹`` from the EFIM of DiPNet eq. (17) (``J_u = Σ_v ν_uv e_uv e_uvᵀ``, the
+    form of :func:`phyloc.analysis.efim.efim`, for every agent at once; neighbours at their
+    published means, the links' ranging information ``likelihood.nu``); a singular ``J_u``
+    (no links, or links that leave a direction undetermined) adds no CRB term.
     """
     if floor_m <= 0:
         return cov
-    dim = cov.shape[1]
+    n_agents, dim = cov.shape[0], cov.shape[1]
     csr = likelihood.csr
-    out = cov.copy()
-    for a in range(cov.shape[0]):
-        j0, j1 = csr.offsets[a], csr.offsets[a + 1]
-        crb = 0.0  # no links, or links that leave a direction undetermined: no CRB term
-        if j1 > j0:
-            J = efim(centers[agent_nodes[a]], centers[csr.tx[j0:j1]], likelihood.nu[j0:j1])
-            crb = float(position_crb(J)) / dim
-        # the CRB term only raises the floor where the links determine the position
-        var = max(floor_m**2, crb if np.isfinite(crb) else 0.0)
-        eig = np.linalg.eigvalsh(out[a])
-        if eig.min() < var:
-            out[a] += (var - min(eig.min(), var)) * np.eye(dim)
-    return out
+    owner = np.repeat(np.arange(n_agents), np.diff(csr.offsets))
+    e, coincident = direction_vectors(centers[agent_nodes[owner]], centers[csr.tx])
+    nu = np.asarray(likelihood.nu, dtype=np.float64)
+    J = np.zeros((n_agents, dim, dim))
+    for i in range(dim):
+        for k in range(i + 1):  # a coincident neighbour contributes ν I/dim (as efim)
+            w = nu * (e[:, i] * e[:, k] + (coincident / dim if i == k else 0.0))
+            J[:, i, k] = J[:, k, i] = np.bincount(owner, weights=w, minlength=n_agents)
+    with np.errstate(invalid="ignore"):
+        crb = position_crb(J) / dim  # inf where singular (no links included)
+    # the CRB term only raises the floor where the links determine the position
+    var = np.maximum(floor_m**2, np.where(np.isfinite(crb), crb, 0.0))
+    low = np.linalg.eigvalsh(cov)[:, 0]
+    lift = np.where(low < var, var - np.minimum(low, var), 0.0)
+    return cov + lift[:, None, None] * np.eye(dim)
 
 
 def run_dpf(
