@@ -13,7 +13,7 @@ from numba import njit, prange
 
 # Phasor recurrences are re-seeded with an exact exp() every _RESEED subcarriers, which keeps
 # the accumulated rounding error below ~1e-14 relative for any N.
-_BLOCK = 8
+_BLOCK = 8  # the kernel's unrolled accumulators assume 8 lanes
 _RESEED = 64 * _BLOCK  # must be a multiple of _BLOCK
 
 
@@ -53,8 +53,6 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
                 zr = t
             sr[p] = zr  # e^{jθ·_BLOCK}
             si[p] = zi
-        accr = np.empty(_BLOCK)
-        acci = np.empty(_BLOCK)
         row = tx_index[i]
         k0 = 0
         while k0 < N:
@@ -64,24 +62,39 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
                     cr[p] = seed.real
                     ci[p] = seed.imag
             nb = min(_BLOCK, N - k0)
-            for m in range(_BLOCK):
-                accr[m] = 0.0
-                acci[m] = 0.0
+            # the block's 8 complex sums in scalars (registers): accumulating into a small
+            # array costs a load and a store per path and lane (measured 1.4–1.9× slower)
+            r0 = r1 = r2 = r3 = r4 = r5 = r6 = r7 = 0.0
+            j0 = j1 = j2 = j3 = j4 = j5 = j6 = j7 = 0.0
             for p in range(P):
                 a = cr[p]
                 b = ci[p]
-                for m in range(_BLOCK):
-                    accr[m] += a * lr[p, m] - b * li[p, m]
-                    acci[m] += a * li[p, m] + b * lr[p, m]
+                r0 += a * lr[p, 0] - b * li[p, 0]
+                j0 += a * li[p, 0] + b * lr[p, 0]
+                r1 += a * lr[p, 1] - b * li[p, 1]
+                j1 += a * li[p, 1] + b * lr[p, 1]
+                r2 += a * lr[p, 2] - b * li[p, 2]
+                j2 += a * li[p, 2] + b * lr[p, 2]
+                r3 += a * lr[p, 3] - b * li[p, 3]
+                j3 += a * li[p, 3] + b * lr[p, 3]
+                r4 += a * lr[p, 4] - b * li[p, 4]
+                j4 += a * li[p, 4] + b * lr[p, 4]
+                r5 += a * lr[p, 5] - b * li[p, 5]
+                j5 += a * li[p, 5] + b * lr[p, 5]
+                r6 += a * lr[p, 6] - b * li[p, 6]
+                j6 += a * li[p, 6] + b * lr[p, 6]
+                r7 += a * lr[p, 7] - b * li[p, 7]
+                j7 += a * li[p, 7] + b * lr[p, 7]
                 cr[p] = a * sr[p] - b * si[p]
                 ci[p] = a * si[p] + b * sr[p]
+            accr = (r0, r1, r2, r3, r4, r5, r6, r7)
+            acci = (j0, j1, j2, j3, j4, j5, j6, j7)
             for m in range(nb):
                 s = symbols[row, k0 + m]
+                ar = accr[m]
+                ai = acci[m]
                 out[i, k0 + m] = (
-                    complex(
-                        s.real * accr[m] - s.imag * acci[m], s.real * acci[m] + s.imag * accr[m]
-                    )
-                    + noise[i, k0 + m]
+                    complex(s.real * ar - s.imag * ai, s.real * ai + s.imag * ar) + noise[i, k0 + m]
                 )
             k0 += _BLOCK
 
