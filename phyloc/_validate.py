@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -101,3 +103,18 @@ def check_keys(table: dict, allowed, where: str) -> None:
             raise ValidationError(
                 join(where, key), table[key], f"unknown key; {hint}valid keys: {', '.join(allowed)}"
             )
+
+
+def unreadable_file(path) -> str | None:
+    """Why ``path`` cannot be read as a file (``"… does not exist"``, ``"… is a directory"``,
+    ``"… is not readable (permission denied)"``), or None when it can."""
+    path = Path(path)
+    if path.is_dir():
+        return f"{path} is a directory"
+    if not path.exists():
+        return f"{path} does not exist"
+    if not path.is_file():
+        return f"{path} is not a regular file"
+    if not os.access(path, os.R_OK):
+        return f"{path} is not readable (permission denied)"
+    return None

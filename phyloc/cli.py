@@ -77,9 +77,12 @@ def _add_cluster(p):
     )
 
 
-def _add_json(p):
+def _add_json(p, *, png: bool | str = False):
+    """``--json PATH`` and ``--force``; ``png`` True (the command writes a ``--png`` figure)
+    or the phrase naming what ``--force`` replaces."""
     p.add_argument("--json", metavar="PATH", help="also write the figures as JSON to PATH")
-    p.add_argument("--force", action="store_true", help="replace an existing --json/--png file")
+    what = "--json/--png file" if png is True else (png or "--json file")
+    p.add_argument("--force", action="store_true", help=f"replace an existing {what}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -212,7 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="import MODULE (a module name or a .py file) that registers localization methods "
         "with phyloc.localization.register_method; repeatable",
     )
-    _add_json(e)
+    _add_json(e, png="--json file or a non-empty --out folder")
     e.set_defaults(func=cmd_evaluate)
 
     c = sub.add_parser(
@@ -241,7 +244,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="figure of example power-delay profiles (default channel_stats_<scenario>.png)",
     )
-    _add_json(c)
+    _add_json(c, png=True)
     c.set_defaults(func=cmd_channel_stats)
 
     a = sub.add_parser("analyze", help="analyses from the theory (DiPNet §IV)")
@@ -261,7 +264,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="figure (default belief_shift_nu<ν>.png)",
     )
-    _add_json(bs)
+    _add_json(bs, png=True)
     bs.set_defaults(func=cmd_belief_shift)
     cc = asub.add_parser(
         "cci",
@@ -312,7 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     cc.add_argument(
         "--png", metavar="PATH", default=None, help="figure (default cci_<scenarios>.png)"
     )
-    _add_json(cc)
+    _add_json(cc, png=True)
     cc.set_defaults(func=cmd_cci)
     return parser
 
@@ -327,7 +330,10 @@ def main(argv=None) -> int:
         print(f"phyloc: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("phyloc: interrupted", file=sys.stderr)
+        hint = ""
+        if getattr(args, "func", None) is cmd_generate:
+            hint = "; finished shards are kept: run the same command with --resume to finish it"
+        print(f"phyloc: interrupted{hint}", file=sys.stderr)
         return 130
 
 
@@ -502,6 +508,8 @@ def cmd_generate(args) -> int:
         progress=not args.no_progress,
     )
     rows = [(k, v) for k, v in summary.items() if isinstance(v, (int, float))]
+    if not summary.get("bytes_written"):  # a resume that reused every shard: no bandwidth
+        rows = [(k, v) for k, v in rows if k != "write_mb_per_s"]
     print(format_table(rows, ["generated " + str(summary.get("path", args.output)), ""]))
     if args.json:
         meta = {

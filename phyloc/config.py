@@ -32,6 +32,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.phy.system import OFDMSystem
@@ -101,9 +102,17 @@ def load_recipe(source) -> Recipe:
     path = None
     if isinstance(source, Path) or (isinstance(source, str) and "=" not in source):
         path = Path(source)
-        if not path.is_file():
-            raise RecipeError(f"recipe {path} does not exist (give the path of a TOML file)")
-        text = path.read_text()
+        why = v.unreadable_file(path)
+        if why:
+            raise RecipeError(f"recipe {why} (give the path of a TOML file)")
+        raw = path.read_bytes()
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise RecipeError(
+                f"recipe {path} is not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset "
+                f"{exc.start}); a recipe is a TOML file"
+            ) from None
     else:
         text = str(source)
     try:

@@ -80,6 +80,14 @@ def _clean(x):
     return x
 
 
+def file_mode() -> int:
+    """The permission bits a new file gets from ``open()`` under the current umask
+    (``0o666 & ~umask``, usually 0644)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def write_json(path, figures: dict, meta: dict, series: dict | None = None, *, force=False):
     """Write the results object to ``path`` atomically; refuse to replace a file unless
     ``force``. Returns the path."""
@@ -93,6 +101,7 @@ def write_json(path, figures: dict, meta: dict, series: dict | None = None, *, f
         doc["series"] = _clean(series)
     fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
     try:
+        os.fchmod(fd, file_mode())  # mkstemp's 0600 → what open() would have given
         with os.fdopen(fd, "w") as fh:
             json.dump(doc, fh, indent=2, sort_keys=False)
             fh.write("\n")

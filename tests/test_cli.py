@@ -116,3 +116,100 @@ def test_quickstart_hands_complete_arguments_to_generate_and_evaluate(tmp_path, 
     assert seen["evaluate"].workers == 2 and seen["evaluate"].no_progress
     assert seen["evaluate"].plugin == []
     assert seen["evaluate"].recipe == str(tmp_path / "quickstart_c2.h5")
+
+
+DATASET = (
+    'kind = "dataset"\nname = "d"\nseed = 3\n[system]\nn_subcarriers = 65\n'
+    '[network]\nn_agents = 3\n[channel]\nscenario = "awgn"\n'
+    "[dataset]\nrealizations = 2\nshard_size = 1\n"
+)
+
+
+def _one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_directories_and_binary_files_are_named_as_such(tmp_path, capsys):
+    """A directory given as recipe or dataset is called a directory (not "does not exist"); a
+    binary recipe is called not UTF-8; each is one line and exit 2."""
+    assert main(["evaluate", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert f"{tmp_path} is a directory" in line and "TOML" in line
+    assert main(["info", str(tmp_path)]) == 2
+    assert "is a directory" in _one_line(capsys.readouterr().err)
+    binary = tmp_path / "r.toml"
+    binary.write_bytes(b'name = "x"\n\xff\xfe\x00garbage')
+    assert main(["generate", str(binary), "-o", str(tmp_path / "d.h5")]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "not UTF-8" in line and "0xff" in line and "offset 11" in line
+    assert not (tmp_path / "d.h5").exists()
+
+
+def test_an_empty_method_list_is_refused_before_any_work(tmp_path, capsys):
+    recipe = tmp_path / "loc.toml"
+    recipe.write_text('kind = "localization"\nname = "loc"\nseed = 1\n[experiment]\nmethods = []\n')
+    assert main(["evaluate", str(recipe), "--out", str(tmp_path / "o")]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "experiment.methods" in line and "at least one of" in line and "dipnet" in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_results_json_gets_the_umask_mode_not_0600(tmp_path):
+    """``write_json`` goes through a temporary file (mode 0600) but ends with the mode any
+    other file gets (``0o666 & ~umask``)."""
+    import os
+
+    from phyloc.reporting import write_json
+
+    old = os.umask(0o022)
+    try:
+        path = write_json(tmp_path / "r.json", {"a": 1.0}, {})
+        assert (path.stat().st_mode & 0o777) == 0o644
+        os.umask(0o027)
+        path = write_json(tmp_path / "s.json", {"a": 1.0}, {})
+        assert (path.stat().st_mode & 0o777) == 0o640
+    finally:
+        os.umask(old)
+
+
+def test_force_help_names_only_outputs_the_command_has(capsys):
+    for argv, png in ((["info"], False), (["bench"], False), (["channel-stats"], True)):
+        with pytest.raises(SystemExit):
+            main([*argv, "--help"])
+        out = " ".join(capsys.readouterr().out.split())
+        assert ("--png" in out) == png, argv
+        assert "replace an existing --json" in out
+
+
+def test_interrupted_generate_says_how_to_finish(tmp_path, capsys, monkeypatch):
+    import phyloc.datasets
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(phyloc.datasets, "generate", interrupted)
+    recipe = tmp_path / "d.toml"
+    recipe.write_text(DATASET)
+    assert main(["generate", str(recipe), "-o", str(tmp_path / "d.h5")]) == 130
+    line = _one_line(capsys.readouterr().err)
+    assert "interrupted" in line and "--resume" in line
+
+
+def test_a_resume_that_writes_nothing_reports_no_bandwidth(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    recipe = tmp_path / "d.toml"
+    recipe.write_text(DATASET)
+    h5 = tmp_path / "d.h5"
+    assert main(["generate", str(recipe), "-o", str(h5)]) == 0
+    assert "write_mb_per_s" in capsys.readouterr().out
+    assert (
+        main(
+            ["generate", str(recipe), "-o", str(h5), "--resume", "--json", str(tmp_path / "g.json")]
+        )
+        == 0
+    )
+    out = capsys.readouterr().out
+    assert "write_mb_per_s" not in out and "nan" not in out
+    assert "write_mb_per_s" not in json.loads((tmp_path / "g.json").read_text())["figures"]

@@ -117,6 +117,18 @@ def test_pathset_helpers():
     np.testing.assert_allclose(both.link(4)[0], [3e-7, 1e-7])
 
 
+def test_single_path_takes_one_gain_per_link_or_one_scalar():
+    ps = PathSet.single_path([1e-7, 2e-7], 0.5j)  # one scalar gain for every link
+    np.testing.assert_array_equal(ps.gains, [0.5j, 0.5j])
+    assert ps.n_paths.tolist() == [1, 1]
+    with pytest.raises(ValidationError, match="gains"):
+        PathSet.single_path([1e-7, 2e-7], [1.0])  # 2 delays, 1 gain: not broadcast
+    with pytest.raises(ValidationError, match="gains"):
+        PathSet.single_path([1e-7, 2e-7], [1.0, 2.0, 3.0])
+    with pytest.raises(ValidationError, match="delays"):
+        PathSet.single_path([[1e-7, 2e-7]], [1.0, 2.0])
+
+
 def test_numpy_twin_handles_all_empty():
     out = synthesize_numpy(
         np.ones((1, 5), complex),

@@ -56,6 +56,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe, load_recipe
 from phyloc.datasets import schema as sc
@@ -113,8 +114,9 @@ def read_arrays(source) -> dict:
     if isinstance(source, Mapping):
         return {str(k): np.asarray(val) for k, val in source.items()}
     path = Path(source)
-    if not path.is_file():
-        raise sc.DatasetError(f"source {path} does not exist (give an .npz or an HDF5 file)")
+    why = v.unreadable_file(path)
+    if why:
+        raise sc.DatasetError(f"source {why} (give an .npz or an HDF5 file)")
     if h5py.is_hdf5(path):
         out = {}
         with h5py.File(path, "r") as f:

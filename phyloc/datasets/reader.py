@@ -131,8 +131,9 @@ class Dataset:
 
     def __init__(self, path):
         self.path = Path(path)
-        if not self.path.is_file():
-            raise sc.DatasetError(f"dataset {self.path} does not exist")
+        why = v.unreadable_file(self.path)
+        if why:
+            raise sc.DatasetError(f"dataset {why} (give the master .h5 file of a dataset)")
         try:
             self.file = h5py.File(self.path, "r")
         except OSError as exc:

@@ -209,6 +209,8 @@ class LocalizationExperimentSpec:
         object.__setattr__(self, "agents", agents)
         v.integer("experiment.realizations", self.realizations, minimum=1)
         direct = REGISTRY.family("direct")
+        if not tuple(self.methods):
+            raise ValidationError("experiment.methods", [], f"at least one of {', '.join(direct)}")
         for m in self.methods:
             if m not in direct:
                 raise ValidationError(

@@ -100,9 +100,25 @@ class PathSet:
 
     @classmethod
     def single_path(cls, delays, gains) -> PathSet:
-        """One path per link (AWGN channel): ``delays`` and ``gains`` of shape ``[n_links]``."""
+        """One path per link (AWGN channel): ``delays`` of shape ``[n_links]``, ``gains`` of the
+        same shape or one scalar gain for every link.
+
+        Raises
+        ------
+        ValidationError
+            ``delays`` not one-dimensional, or ``gains`` neither a scalar nor ``[n_links]``.
+        """
         d = np.atleast_1d(np.asarray(delays, dtype=np.float64))
-        g = np.broadcast_to(np.asarray(gains, dtype=np.complex128), d.shape).copy()
+        if d.ndim != 1:
+            raise ValidationError("delays", f"array of shape {d.shape}", "must be [n_links]")
+        g = np.asarray(gains, dtype=np.complex128)
+        if g.ndim != 0 and g.shape != d.shape:
+            raise ValidationError(
+                "gains",
+                f"array of shape {g.shape}",
+                f"must be a scalar or [n_links] = {d.shape} like delays",
+            )
+        g = np.broadcast_to(g, d.shape).copy()
         return cls(d, g, np.arange(d.size + 1, dtype=np.int64))
 
     @property
