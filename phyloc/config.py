@@ -96,6 +96,34 @@ class Recipe:
             raise ValidationError(f"{name}.{exc.field}", exc.value, exc.allowed) from None
 
 
+def dumps_toml(doc: dict) -> str:
+    """TOML text of ``doc`` (by ``tomli_w``; keys whose value is None are left out, since TOML
+    has no null). ``tomllib.loads(dumps_toml(doc))`` gives ``doc`` back.
+
+    Examples
+    --------
+    >>> print(dumps_toml({"name": "x", "skip": None, "network": {"region_m": [60.0, 60.0]}}))
+    name = "x"
+    <BLANKLINE>
+    [network]
+    region_m = [
+        60.0,
+        60.0,
+    ]
+    <BLANKLINE>
+    """
+    import tomli_w
+
+    def clean(x):
+        if isinstance(x, dict):
+            return {str(k): clean(val) for k, val in x.items() if val is not None}
+        if isinstance(x, (list, tuple)):
+            return [clean(val) for val in x]
+        return x
+
+    return tomli_w.dumps(clean(doc))
+
+
 def load_recipe(source) -> Recipe:
     """Read and validate a recipe from a path (or from TOML text starting with a newline or
     containing ``=``)."""

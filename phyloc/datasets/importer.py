@@ -58,10 +58,10 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
-from phyloc.config import Recipe, load_recipe
+from phyloc.config import Recipe, dumps_toml, load_recipe
 from phyloc.datasets import schema as sc
 from phyloc.datasets.spec import DatasetSpec
-from phyloc.datasets.writer import DatasetPlan, _fsync, _h5_attrs, _lock, _toml_dumps, write_master
+from phyloc.datasets.writer import DatasetPlan, _fsync, _h5_attrs, _lock, write_master
 from phyloc.errors import ValidationError
 from phyloc.network import NetworkSpec
 from phyloc.phy.system import K_BOLTZMANN, OFDMSystem
@@ -648,7 +648,7 @@ def _recipe_text(doc: dict, source_label: str) -> str:
         "# [dataset] describe the imported arrays: nothing is simulated, and phyloc generate\n"
         "# cannot rebuild this dataset. [channel] scenario is a label in figure names.\n"
     )
-    return head + _toml_dumps(doc)
+    return head + dumps_toml(doc)
 
 
 # -- writing --------------------------------------------------------------------------------

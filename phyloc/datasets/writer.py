@@ -60,7 +60,7 @@ from tqdm.auto import tqdm
 
 from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
-from phyloc.config import Recipe, load_recipe
+from phyloc.config import Recipe, dumps_toml, load_recipe
 from phyloc.datasets import schema as sc
 from phyloc.datasets.simulate import Realization, simulate_realization
 from phyloc.datasets.spec import DatasetSpec
@@ -141,7 +141,7 @@ class DatasetPlan:
             "channel": self.channel.to_dict(),
             "dataset": self.dataset.to_dict(),
         }
-        return _toml_dumps(doc)
+        return dumps_toml(doc)
 
 
 def plan_dataset(recipe) -> DatasetPlan:
@@ -906,37 +906,6 @@ def _scan_shards(plan: DatasetPlan, sdir: Path, known: dict) -> list:
             )
         records.append(rec)
     return records
-
-
-# -- tiny TOML writer (recipes built in code have no text) ------------------------------------
-def _toml_value(x) -> str:
-    if isinstance(x, bool):
-        return "true" if x else "false"
-    if isinstance(x, str):
-        return json.dumps(x)
-    if isinstance(x, float):
-        if math.isfinite(x):
-            return repr(x)
-        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
-    if isinstance(x, (list, tuple)):
-        return "[" + ", ".join(_toml_value(y) for y in x) + "]"
-    return str(x)
-
-
-def _toml_dumps(doc: dict, prefix: str = "") -> str:
-    lines, tables = [], []
-    for k, val in doc.items():
-        if val is None:
-            continue
-        if isinstance(val, dict):
-            tables.append((k, val))
-        else:
-            lines.append(f"{k} = {_toml_value(val)}")
-    out = "\n".join(lines)
-    for k, val in tables:
-        name = f"{prefix}{k}"
-        out += f"\n\n[{name}]\n" + _toml_dumps(val, prefix=f"{name}.").rstrip()
-    return out.strip() + "\n"
 
 
 __all__ = [
