@@ -320,7 +320,7 @@ def _particles(positions, Q, rng, std_m=3.0):
     return positions[:, None, :] + std_m * rng.standard_normal((len(positions), Q, 2))
 
 
-def time_exact(G, n_anchor_links, rng, repeat, *, n_agents=2, min_time=None):
+def exact_seconds(G, n_anchor_links, rng, repeat, *, n_agents=2, min_time=None):
     """Seconds per agent-iteration of :func:`exact_joint_posterior` and the joint-table size."""
     kw = exact_toy(G, n_anchor_links, rng, n_agents=n_agents)
     out = {}
@@ -332,7 +332,7 @@ def time_exact(G, n_anchor_links, rng, repeat, *, n_agents=2, min_time=None):
     return t / n_agents, out["post"].log_joint.size
 
 
-def time_sampled(net, k, Q, rng, repeat, *, n_rx=2, min_time=None):
+def sampled_seconds(net, k, Q, rng, repeat, *, n_rx=2, min_time=None):
     """Seconds per agent-iteration of the sample-based weighting sweep and floats per link.
 
     ``n_rx`` agents receive (the per-agent cost does not depend on how many do); every node
@@ -362,7 +362,7 @@ def belief_floats(beliefs, v) -> int:
     return sum(a[v, :c].size if a.ndim > 1 else 1 for a in arrays)
 
 
-def time_el(net, k, Q, rng, repeat, *, min_time=None):
+def el_seconds(net, k, Q, rng, repeat, *, min_time=None):
     """Seconds per agent-iteration of the EL weighting sweep (DiPNet eq. (25) with the ENV) and
     the floats of the moments it reads per neighbour."""
     links, table = net.degree(k)
@@ -381,7 +381,7 @@ def _moment_floats(means, covs):
     return dim + (dim * (dim + 1) // 2 if sym else dim * dim)
 
 
-def time_method(name, net, k, Q, rng, repeat, *, n_iterations=2, prior_std_m=5.0, min_time=None):
+def method_seconds(name, net, k, Q, rng, repeat, *, n_iterations=2, prior_std_m=5.0, min_time=None):
     """Seconds per agent-iteration of a registered method (``timing.per_agent_iteration_s``),
     floats of the published moments per link, tempering steps per iteration."""
     links, table = net.degree(k)
@@ -454,10 +454,10 @@ def report(quick: bool = False, seed: int = 0) -> dict[str, float]:
         fig["table1.dipnet.table_s_per_link"] = net.table_s_per_link
         # JIT and caches, outside every measurement
         k1 = min(cfg["links"])
-        time_sampled(net, k1, 20, rng, 1)
-        time_el(net, k1, 20, rng, 1)
+        sampled_seconds(net, k1, 20, rng, 1)
+        el_seconds(net, k1, 20, rng, 1)
         for name in ("dipnet_published", "dipnet"):
-            time_method(name, net, k1, 50, rng, 1, n_iterations=1)
+            method_seconds(name, net, k1, 50, rng, 1, n_iterations=1)
         passes = cfg["passes"]
         min_time = MIN_TIME_S / passes
         k0 = cfg["links_fixed"]
@@ -492,8 +492,8 @@ def report(quick: bool = False, seed: int = 0) -> dict[str, float]:
             fig[f"table1.{scheme}.fixed_s"] = float(fixed)
         # Exact is Q^|M|: one more agent multiplies the joint table by Q
         g = cfg["exact_agents_g"]
-        t2, n2 = time_exact(g, 2, rng, passes, n_agents=2)
-        t3, n3 = time_exact(g, 2, rng, passes, n_agents=3)
+        t2, n2 = exact_seconds(g, 2, rng, passes, n_agents=2)
+        t3, n3 = exact_seconds(g, 2, rng, passes, n_agents=3)
         fig["table1.exact.exponent_joint_size"] = slope([n2, n3], [2 * t2, 3 * t3])
     finally:
         numba.set_num_threads(before)
@@ -506,15 +506,15 @@ def _measure(scheme, net, k, Q, rng, min_time):
         G = round(math.sqrt(Q))
         if G * G != Q:
             raise ValidationError("Q", Q, "a square (the exact scheme's grid is G×G)")
-        t, size = time_exact(
+        t, size = exact_seconds(
             G, k - 1, rng, 1, min_time=min_time
         )  # |V_u| = the other agent + k − 1 anchors
         return t, size, None
     if scheme == "sampled":
-        return (*time_sampled(net, k, Q, rng, 1, min_time=min_time), None)
+        return (*sampled_seconds(net, k, Q, rng, 1, min_time=min_time), None)
     if scheme == "el":
-        return (*time_el(net, k, Q, rng, 1, min_time=min_time), None)
-    t, floats, steps = time_method(scheme, net, k, Q, rng, 1, min_time=min_time)
+        return (*el_seconds(net, k, Q, rng, 1, min_time=min_time), None)
+    t, floats, steps = method_seconds(scheme, net, k, Q, rng, 1, min_time=min_time)
     return t, floats, (steps if scheme == "dipnet" else None)
 
 

@@ -130,17 +130,17 @@ def test_exact_posterior_rejects_bad_input(rng):
 # -- floats exchanged, exponents --------------------------------------------------------------
 def test_floats_per_link_read_off_the_exchanged_arrays(rng):
     net = T.circulant_network(5, 2, rng)
-    f7 = T.time_sampled(net, 2, 7, rng, 1, n_rx=2)[1]
-    f11 = T.time_sampled(net, 2, 11, rng, 1, n_rx=2)[1]
+    f7 = T.sampled_seconds(net, 2, 7, rng, 1, n_rx=2)[1]
+    f11 = T.sampled_seconds(net, 2, 11, rng, 1, n_rx=2)[1]
     # Q points of dim 2 and Q log weights (and at most one per-node scalar, a kernel width)
     assert f11 - f7 == 4 * (2 + 1) and f7 - 7 * 3 in (0, 1)
     anchors_only = NodeBeliefs.single(np.zeros((3, 2)))
     assert T.belief_floats(anchors_only, 1) - 1 * 3 in (0, 1)
-    _t, floats = T.time_el(net, 2, 7, rng, 1)
+    _t, floats = T.el_seconds(net, 2, 7, rng, 1)
     assert floats == 2 + 3  # mean + the distinct entries of a symmetric 2×2 covariance
     C = np.array([[1.0, 0.2], [0.3, 1.0]])
     assert T._moment_floats(np.zeros(2), C) == 6
-    t, size = T.time_exact(3, 2, rng, 1)
+    t, size = T.exact_seconds(3, 2, rng, 1)
     assert size == 9**2 and t > 0
 
 
