@@ -208,6 +208,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     e.add_argument("--no-progress", action="store_true", help="no progress bar")
     e.add_argument(
+        "--no-verify",
+        action="store_true",
+        help="evaluating a dataset: skip the SHA-256 check of its shard files before reading",
+    )
+    e.add_argument(
         "--plugin",
         action="append",
         default=[],
@@ -440,6 +445,16 @@ def cmd_evaluate(args) -> int:
         "scheduler": args.scheduler,
         "progress": not args.no_progress,
     }
+    verify_s = None
+    if recipe is None and not args.no_verify:  # never compute on corrupt waveforms
+        from phyloc.datasets.reader import check_shard_files
+
+        checked = check_shard_files(source)
+        verify_s = checked["seconds"]
+        print(
+            f"checked {checked['shards']} shard checksums ({checked['bytes'] / 1e6:.1f} MB) "
+            f"in {verify_s:.2f} s (--no-verify skips this)"
+        )
     res = exp.run(recipe, **kw) if recipe is not None else exp.run_dataset(source, **kw)
     text = recipe.text if recipe is not None else _dataset_recipe_text(source)
     wall = time.perf_counter() - t0
@@ -447,6 +462,8 @@ def cmd_evaluate(args) -> int:
     # every run records its wall time and worker count among its figures
     res["figures"]["run.wall_s"] = wall
     res["figures"]["run.workers"] = 0 if args.scheduler else int(args.workers or 1)
+    if verify_s is not None:
+        res["figures"]["run.verify_s"] = verify_s
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "results.json", res["figures"], res["meta"], res["series"], force=True)
     (out / "recipe.toml").write_text(text)

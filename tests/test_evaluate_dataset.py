@@ -110,3 +110,38 @@ def test_tracking_runs_every_snapshot_and_equals_in_memory_on_any_worker_count(t
         assert one["figures"][base + ".framework_rmse_m"] == pytest.approx(
             np.sqrt(np.mean(per_t**2)), rel=1e-9
         )
+
+
+def test_evaluate_refuses_a_corrupt_shard_and_names_it(tmp_path, capsys):
+    """A flipped bit in a shard, or a truncated shard: ``phyloc evaluate`` stops before reading
+    (exit 2, one line naming the shard and the repair); ``--no-verify`` reads anyway. A sound
+    dataset records the cost of the check as ``run.verify_s``."""
+    import json
+
+    from phyloc.cli import main
+
+    h5 = tmp_path / "tiny.h5"
+    generate(load_recipe(DATASET), h5, progress=False)
+    out = tmp_path / "ok"
+    assert main(["evaluate", str(h5), "--out", str(out), "--fast", "--no-progress"]) == 0
+    figures = json.loads((out / "results.json").read_text())["figures"]
+    assert 0 < figures["run.verify_s"] < figures["run.wall_s"]
+    assert "checked 2 shard checksums" in capsys.readouterr().out
+    shard = sorted((tmp_path / "tiny.h5.shards").glob("shard-*.h5"))[1]
+    data = bytearray(shard.read_bytes())
+    data[len(data) // 3] ^= 0x10
+    shard.write_bytes(bytes(data))
+    bad = tmp_path / "bad"
+    assert main(["evaluate", str(h5), "--out", str(bad), "--fast", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert "shard 1" in err and shard.name in err and "--resume" in err
+    assert not bad.exists()  # nothing written
+    shard.write_bytes(bytes(data[: len(data) // 2]))  # truncated
+    assert main(["evaluate", str(h5), "--out", str(bad), "--fast", "--no-progress"]) == 2
+    assert "shard 1" in capsys.readouterr().err
+    # --fast reads realization 0 only (shard 0, sound): the escape hatch reads it
+    assert (
+        main(["evaluate", str(h5), "--out", str(bad), "--fast", "--no-progress", "--no-verify"])
+        == 0
+    )
