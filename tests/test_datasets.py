@@ -417,3 +417,60 @@ def test_recipe_built_in_code_is_stored_as_loadable_toml(tmp_path):
     with pds.open(out) as ds:
         again = pds.plan_dataset(ds.load_recipe())
     assert again.fingerprint == pds.plan_dataset(recipe).fingerprint
+
+
+def test_every_master_array_has_named_dimension_scales(reference):
+    """Schema 1.1: each array of the master (and of its shard table) has one attached HDF5
+    dimension scale per axis, named as its ``axes`` attribute says, of the right length."""
+    out, _ = reference
+    with h5py.File(out, "r") as f:
+        names = [sc._text(x) for x in f["shards/array_sha256"].attrs["arrays"]]
+        assert set(names) == {a.name for a in sc.arrays_for({})}
+        for name in names:
+            d = f[name]
+            axes = sc._text(d.attrs["axes"]).split(",")
+            assert len(d.dims) == len(axes)
+            for i, ax in enumerate(axes):
+                (scale,) = d.dims[i].values()
+                assert scale.name == f"/{ax}" and scale.shape == (d.shape[i],), (name, ax)
+        for d in f["shards"].values():
+            assert f["shards/complete"].shape[0] == len(f["shard"]) == d.shape[0]
+            assert d.dims[0][0].name == "/shard"
+
+
+def test_xarray_opens_the_master_with_named_dimensions_and_coordinates(reference):
+    """``open_xarray`` (h5netcdf) gives named dimensions, no ``phony_dim``, coordinate values
+    (subcarrier frequencies n·f_sc, sample times i·T), units, and the same numbers as h5py."""
+    pytest.importorskip("xarray")
+    pytest.importorskip("h5netcdf")
+    out, _ = reference
+    tree = pds.open_xarray(out)
+    root, nodes = tree.dataset, tree["nodes"].dataset
+    assert root["received"].dims == ("realization", "snapshot", "link", "sample")
+    assert nodes["positions"].dims == ("realization", "snapshot", "node", "coordinate")
+    assert tree["channel/paths"].dataset["gains"].dims == ("path",)
+    assert tree["shards"].dataset["array_sha256"].dims == ("shard", "array")
+    every = [d for node in tree.subtree for d in node.dataset.dims]
+    assert every and not any(str(d).startswith("phony_dim") for d in every)
+    n = np.arange(65) - 32
+    np.testing.assert_allclose(root["subcarrier"].values, n * 1.0e6)
+    assert root["subcarrier"].attrs["units"] == "Hz"
+    np.testing.assert_allclose(np.diff(root["sample"].values), 1.0 / (65 * 1.0e6), rtol=1e-12)
+    assert nodes["positions"].attrs["units"] == "m"
+    with h5py.File(out, "r") as f:
+        np.testing.assert_array_equal(root["received"].values, f["received"][...])
+        np.testing.assert_array_equal(nodes["positions"].values, f["nodes/positions"][...])
+
+
+def test_schema_1_0_files_stay_readable_but_are_not_opened_by_xarray(tmp_path, reference):
+    """A master of schema 1.0 (no dimension scales) reads as before; ``open_xarray`` refuses it
+    with the reason instead of returning phony dimensions."""
+    out = _copy_dataset(reference[0], tmp_path)
+    with h5py.File(out, "r+") as f:
+        for name in ("realization", "snapshot", "node", "coordinate", "link", "end"):
+            del f[name]  # the scales a 1.0 writer never made (detached with them)
+        f.attrs["schema_version"] = "1.0"
+    with pds.open(out) as ds:
+        assert ds.schema_version == "1.0" and ds.realization(0).network.n_nodes == 4
+    with pytest.raises(pds.DatasetError, match=r"schema 1\.0, without dimension scales"):
+        pds.open_xarray(out)

@@ -52,7 +52,15 @@ updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
 """
 
 from phyloc.datasets.importer import export_arrays, import_arrays
-from phyloc.datasets.reader import Dataset, Snapshot, info, open, open_dataset, verify
+from phyloc.datasets.reader import (
+    Dataset,
+    Snapshot,
+    info,
+    open,
+    open_dataset,
+    open_xarray,
+    verify,
+)
 from phyloc.datasets.schema import (
     SCHEMA_VERSION,
     DatasetBusyError,
@@ -91,6 +99,7 @@ __all__ = [
     "info",
     "open",
     "open_dataset",
+    "open_xarray",
     "plan_dataset",
     "realization_seed",
     "simulate_realization",

@@ -454,6 +454,44 @@ def open_dataset(path) -> Dataset:
 
 
 #: ``phyloc.datasets.open`` (the name the package exports).
+def open_xarray(path):
+    """The dataset's master file as an :class:`xarray.DataTree` with named dimensions.
+
+    Every array of the master carries HDF5 dimension scales (schema 1.1): ``realization``,
+    ``snapshot`` (times [s]), ``node``, ``coordinate``, ``link``, ``end``, ``subcarrier``
+    (frequencies relative to the carrier [Hz]), ``sample`` (times [s]), ``path``, ``shard`` and
+    ``array``, so ``xarray.open_datatree(path, engine="h5netcdf")`` (and ``open_dataset`` with
+    ``group="nodes"`` etc.) give labelled arrays; this function is that call. Arrays are read
+    lazily through the master's virtual datasets. Needs the optional extra
+    ``phyloc[xarray]`` (xarray and h5netcdf).
+
+    Raises
+    ------
+    DatasetError
+        The file is not a phyloc dataset, or was written before schema 1.1 (no dimension
+        scales: ``phyloc generate RECIPE -o NEW.h5`` rewrites it).
+    PhylocError
+        xarray or h5netcdf is not installed.
+    """
+    from phyloc.errors import PhylocError
+
+    with open_dataset(path) as ds:
+        version = ds.schema_version
+        path = ds.path
+    if tuple(int(x) for x in version.split(".")[:2]) < (1, 1):
+        raise sc.DatasetError(
+            f"{path} has schema {version}, without dimension scales (added in 1.1); "
+            "regenerate it with this phyloc to open it with xarray"
+        )
+    try:
+        import xarray
+    except ImportError:
+        raise PhylocError(
+            "open_xarray needs xarray and h5netcdf: pip install 'phyloc[xarray]'"
+        ) from None
+    return xarray.open_datatree(path, engine="h5netcdf", decode_timedelta=False)
+
+
 open = open_dataset
 
 

@@ -1,4 +1,4 @@
-"""The HDF5 layout of a phyloc waveform dataset (schema 1.0; documented in datasets/README.md).
+"""The HDF5 layout of a phyloc waveform dataset (schema 1.1; documented in datasets/README.md).
 
 A dataset is a *master* file ``OUT.h5`` and a sidecar folder ``OUT.h5.shards/`` of shard files
 ``shard-00000.h5``, … . Every shard holds the arrays of a contiguous range of realizations
@@ -29,7 +29,7 @@ from phyloc.reporting import OutputExistsError
 
 #: Version of the layout written by this phyloc, "MAJOR.MINOR". Readers accept files of the
 #: same major version (minor versions only add arrays or attributes) and refuse newer majors.
-SCHEMA_VERSION = "1.0"
+SCHEMA_VERSION = "1.1"  # 1.1: HDF5 dimension scales on every array of the master
 SCHEMA_MAJOR = int(SCHEMA_VERSION.split(".")[0])
 #: Root attribute ``format`` of a master file and of a shard file.
 MASTER_FORMAT = "phyloc.dataset"

@@ -534,6 +534,7 @@ def write_master(out, plan: DatasetPlan, records, *, created: str | None = None)
             _write_shard_table(f, plan, records, arrays, sdir.name)
             for a in arrays:
                 _write_master_array(f, a, dims, done, path_offset, sdir.name)
+            _write_dimension_scales(f, plan, dims, arrays)
         os.replace(tmp, out)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -573,6 +574,51 @@ def _write_shard_table(f, plan, records, arrays, sdir_name) -> None:
     d.attrs["arrays"] = [a.name for a in arrays]
     g.attrs["directory"] = sdir_name
     g["file"].attrs["description"] = "shard file, relative to the master file's folder"
+
+
+def _write_dimension_scales(f, plan, dims, arrays) -> None:
+    """HDF5 dimension scales (one root dataset per axis, with coordinate values where they
+    exist) attached to every array of the master and of its shard table, so netCDF readers
+    (``h5netcdf``, xarray) see named dimensions instead of ``phony_dim_*``."""
+    system, net = plan.system, plan.network
+    K, N = dims["snapshot"], dims["subcarrier"]
+    dt = net.motion.dt_s if K > 1 else 0.0
+    n = np.arange(N) - (N - 1) // 2
+    coords = {
+        "realization": (np.arange(dims["realization"]), "1", "realization index"),
+        "snapshot": (np.arange(K) * dt, "s", "snapshot time"),
+        "node": (np.arange(dims["node"]), "1", "node id"),
+        "coordinate": (np.arange(dims["coordinate"]), "1", "position axis (0: x, 1: y, 2: z)"),
+        "link": (np.arange(dims["link"]), "1", "link row (padded; links/valid marks real ones)"),
+        "end": (np.arange(2), "1", "link end (0: receiver u, 1: transmitter v)"),
+        "subcarrier": (
+            n * system.subcarrier_spacing_hz,
+            "Hz",
+            "subcarrier frequency relative to the carrier, n f_sc, n = -(N-1)/2 .. (N-1)/2",
+        ),
+        "sample": (
+            np.arange(dims["sample"]) * system.sample_period_s,
+            "s",
+            "sample time i T within the OFDM symbol",
+        ),
+        "path": (np.arange(dims["path"]), "1", "path row (all links' paths concatenated)"),
+        "shard": (np.arange(plan.dataset.n_shards), "1", "shard index"),
+        "array": (np.arange(len(arrays)), "1", "array (the order of shards/array_sha256)"),
+    }
+    scales = {}
+    for name, (values, units, description) in coords.items():
+        d = f.create_dataset(name, data=values)
+        d.attrs["units"] = units
+        d.attrs["description"] = description
+        d.make_scale(name)
+        scales[name] = d
+    for a in arrays:
+        for i, ax in enumerate(a.axes):
+            f[a.name].dims[i].attach_scale(scales[ax])
+    for d in f["shards"].values():
+        d.dims[0].attach_scale(scales["shard"])
+        if d.ndim == 2:
+            d.dims[1].attach_scale(scales["array"])
 
 
 def _write_master_array(f, a: sc.ArraySpec, dims, done, path_offset, sdir_name) -> None:
