@@ -516,6 +516,9 @@ def cmd_generate(args) -> int:
             "phyloc generate takes a dataset recipe "
             '(kind = "dataset"); run experiment recipes with phyloc evaluate',
         )
+    from phyloc.evaluation.localization_experiment import check_dataset_recipe
+
+    check_dataset_recipe(recipe)  # [experiment], [ranging], [localization]: before any work
     summary = generate(
         recipe,
         args.output,

@@ -213,3 +213,26 @@ def test_a_resume_that_writes_nothing_reports_no_bandwidth(tmp_path, capsys, mon
     out = capsys.readouterr().out
     assert "write_mb_per_s" not in out and "nan" not in out
     assert "write_mb_per_s" not in json.loads((tmp_path / "g.json").read_text())["figures"]
+
+
+@pytest.mark.parametrize(
+    ("section", "key"),
+    [
+        ('[experiment]\nmethods = ["foo"]\n', "experiment.methods"),
+        ("[experiment]\nmethods = []\n", "experiment.methods"),
+        ("[experiment]\nmethdos = []\n", "experiment.methdos"),
+        ("[localization]\nn_particles = 0\n", "n_particles"),
+        ("[ranging]\nbeta = 0\n", "ranging.beta"),
+        ("[ranging]\nwindow_m = [300, 0]\n", "ranging.window_m"),
+    ],
+)
+def test_generate_validates_what_evaluate_reads_before_any_work(tmp_path, capsys, section, key):
+    """The [experiment], [ranging] and [localization] sections of a dataset recipe are only
+    read by ``evaluate``; ``generate`` refuses bad ones first, with evaluate's message, and
+    leaves no file behind."""
+    recipe = tmp_path / "d.toml"
+    recipe.write_text(DATASET + section)
+    out = tmp_path / "d.h5"
+    assert main(["generate", str(recipe), "-o", str(out)]) == 2
+    assert key in _one_line(capsys.readouterr().err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.toml"]

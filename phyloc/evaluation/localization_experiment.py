@@ -682,6 +682,44 @@ def _aggregate(keys, results, exp, tokens):
     return figures, series
 
 
+DATASET_EXPERIMENT_KEYS = ("methods", "inits", "fast")
+"""Keys of a dataset recipe's ``[experiment]`` (what ``phyloc evaluate DATASET`` runs)."""
+
+
+def dataset_specs(recipe, n_agents: int, n_realizations: int):
+    """What ``phyloc evaluate DATASET`` runs on a dataset of ``recipe``: the experiment
+    (``[experiment]`` methods and inits), ranging and localization specs, and the scenario
+    token. Validates those sections with the messages ``evaluate`` gives (``phyloc generate``
+    calls it through :func:`check_dataset_recipe` before any work).
+    """
+    raw = dict(recipe.section("experiment"))
+    v.check_keys(raw, DATASET_EXPERIMENT_KEYS, "experiment")
+    raw.pop("fast", None)
+    scenario = recipe.section("channel", ChannelSpec).scenario
+    token = scenario.split("_", 1)[1] if scenario.startswith("winner2_") else scenario
+    exp = LocalizationExperimentSpec(
+        scenarios={token: scenario},
+        agents=(n_agents,),
+        realizations=n_realizations,
+        methods=tuple(raw.get("methods", METHODS)),
+        inits=tuple(raw.get("inits", ("truth_free",))),
+        cdf_agents=(n_agents,),
+    )
+    rspec = recipe.section("ranging", RangingSpec)
+    lspec = recipe.section("localization", LocalizationSpec)
+    return exp, rspec, lspec, token
+
+
+def check_dataset_recipe(recipe) -> None:
+    """Validate the sections of a dataset recipe that only ``phyloc evaluate`` reads
+    (``[experiment]``, ``[ranging]``, ``[localization]``), so ``phyloc generate`` fails before
+    hours of work instead of ``evaluate`` after them."""
+    from phyloc.datasets.writer import plan_dataset
+
+    plan = plan_dataset(recipe)
+    dataset_specs(plan.recipe, plan.network.n_agents, plan.dataset.realizations)
+
+
 def run_dataset(path, *, fast: bool = False, workers=None, scheduler=None, progress=True):
     """Run the localization methods on the waveforms of a dataset (``phyloc generate``).
 
@@ -697,21 +735,7 @@ def run_dataset(path, *, fast: bool = False, workers=None, scheduler=None, progr
         recipe = ds.load_recipe()
         n_real = ds.n_realizations
         net = ds.realization(0).network
-    raw = dict(recipe.section("experiment"))
-    raw.pop("fast", None)
-    chan = recipe.section("channel", ChannelSpec)
-    scenario = chan.scenario
-    token = scenario.split("_", 1)[1] if scenario.startswith("winner2_") else scenario
-    exp = LocalizationExperimentSpec(
-        scenarios={token: scenario},
-        agents=(net.n_agents,),
-        realizations=1 if fast else n_real,
-        methods=tuple(raw.get("methods", METHODS)),
-        inits=tuple(raw.get("inits", ("truth_free",))),
-        cdf_agents=(net.n_agents,),
-    )
-    rspec = recipe.section("ranging", RangingSpec)
-    lspec = recipe.section("localization", LocalizationSpec)
+    exp, rspec, lspec, token = dataset_specs(recipe, net.n_agents, 1 if fast else n_real)
     payloads = [
         (str(path), r, rspec, lspec, exp.methods, exp.inits) for r in range(exp.realizations)
     ]
