@@ -168,7 +168,34 @@ def dask_client(*, workers=None, scheduler=None):
             cluster = stack.enter_context(local_cluster(int(workers)))
             yield stack.enter_context(Client(cluster))
         else:
-            yield stack.enter_context(Client(scheduler))
+            yield stack.enter_context(connect(scheduler))
+
+
+SCHEDULER_TIMEOUT_S = 10.0
+"""Seconds to wait for an existing Dask scheduler before giving up (:func:`connect`)."""
+
+
+def connect(scheduler: str):
+    """A ``dask.distributed.Client`` connected to the scheduler at ``scheduler``.
+
+    Raises
+    ------
+    PhylocError
+        The address is malformed or no scheduler answers there within
+        :data:`SCHEDULER_TIMEOUT_S` (one line saying which, instead of Dask's traceback).
+    """
+    from dask.distributed import Client
+
+    from phyloc.errors import PhylocError
+
+    try:
+        return Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s")
+    except (OSError, TimeoutError, ValueError, TypeError) as exc:
+        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise PhylocError(
+            f"cannot connect to the Dask scheduler at {scheduler!r} ({why}); start one with "
+            "`dask scheduler` (it prints its tcp://host:port address) or check the address"
+        ) from None
 
 
 def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show):

@@ -236,3 +236,28 @@ def test_generate_validates_what_evaluate_reads_before_any_work(tmp_path, capsys
     assert main(["generate", str(recipe), "-o", str(out)]) == 2
     assert key in _one_line(capsys.readouterr().err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.toml"]
+
+
+def test_an_unreachable_scheduler_is_one_line_and_leaves_nothing_behind(
+    tmp_path, capsys, monkeypatch
+):
+    """generate --scheduler at an address where nobody listens, and at a malformed address:
+    exit 2 with one line naming the address, no master, lock or shard folder left, so the
+    same command can be rerun as is."""
+    import socket
+
+    import phyloc.parallel
+
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    monkeypatch.setattr(phyloc.parallel, "SCHEDULER_TIMEOUT_S", 2.0)
+    with socket.socket() as s:  # a free port: nothing listens there
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    recipe = tmp_path / "d.toml"
+    recipe.write_text(DATASET)
+    out = tmp_path / "d.h5"
+    for address in (f"tcp://127.0.0.1:{port}", "not a scheduler address"):
+        assert main(["generate", str(recipe), "-o", str(out), "--scheduler", address]) == 2
+        line = _one_line(capsys.readouterr().err)
+        assert "cannot connect to the Dask scheduler" in line and repr(address) in line
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["d.toml"]

@@ -735,8 +735,32 @@ def generate(
         raise ValidationError("out_path", str(out), "is a folder; give the path of an .h5 file")
     if (out.exists() or sdir.exists()) and not resume:
         raise sc.DatasetExistsError(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    sdir.mkdir(exist_ok=True)
+    fresh = not out.exists() and not sdir.exists()
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        sdir.mkdir(exist_ok=True)
+        return _generate(plan, out, sdir, t0, workers, scheduler, resume, progress)
+    except BaseException:
+        if fresh:  # a run that failed before finishing any shard leaves nothing behind
+            _remove_if_no_shard(out, sdir)
+        raise
+
+
+def _remove_if_no_shard(out: Path, sdir: Path) -> None:
+    """Delete the master, lock and shard folder a failed first run created, unless a shard
+    was finished (then ``--resume`` has something to keep)."""
+    if sdir.is_dir() and any(sdir.glob("shard-*.h5")):
+        return
+    with contextlib.suppress(OSError):
+        out.unlink(missing_ok=True)
+        if sdir.is_dir():
+            for p in sdir.iterdir():  # the lock and temporary files of this run
+                p.unlink()
+            sdir.rmdir()
+
+
+def _generate(plan, out, sdir, t0, workers, scheduler, resume, progress) -> dict:
+    """The body of :func:`generate` once the output folder exists."""
     dspec = plan.dataset
     S = dspec.n_shards
     with _lock(sdir, out):
