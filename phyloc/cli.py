@@ -94,6 +94,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Signal-level PHY simulation and direct localization of wireless networks.",
     )
     parser.add_argument("--version", action="version", version=f"phyloc {__version__}")
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help="show the full traceback of an error instead of one line",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -332,14 +337,47 @@ def main(argv=None) -> int:
     try:
         return int(args.func(args) or 0)
     except PhylocError as exc:
+        if args.debug:
+            raise
         print(f"phyloc: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:  # permission denied, disk full, a file where a folder should be, …
+        if args.debug:
+            raise
+        print(f"phyloc: error: {_os_error(exc)}", file=sys.stderr)
+        return 2
+    except Exception as exc:  # a defect of phyloc: one line, the traceback on request
+        if args.debug:
+            raise
+        print(
+            f"phyloc: internal error: {type(exc).__name__}: {exc} "
+            "(run with --debug for the traceback)",
+            file=sys.stderr,
+        )
+        return 1
     except KeyboardInterrupt:
         hint = ""
         if getattr(args, "func", None) is cmd_generate:
             hint = "; finished shards are kept: run the same command with --resume to finish it"
         print(f"phyloc: interrupted{hint}", file=sys.stderr)
         return 130
+
+
+def _os_error(exc: OSError) -> str:
+    """One line for an operating-system error: what failed, on which path, and the likely
+    remedy for the common cases."""
+    import errno
+
+    where = f": {exc.filename}" if getattr(exc, "filename", None) else ""
+    what = exc.strerror or str(exc).splitlines()[0] or type(exc).__name__
+    hint = {
+        errno.EACCES: "check the permissions or choose another path",
+        errno.EROFS: "the file system is read-only; choose another path",
+        errno.ENOSPC: "the disk is full; free space (completed shards are kept: --resume)",
+        errno.EISDIR: "a folder is in the way; give a file path",
+        errno.ENOTDIR: "a file is in the way where a folder is needed; choose another path",
+    }.get(exc.errno)
+    return f"{what}{where}" + (f" ({hint})" if hint else "")
 
 
 # -- bench -----------------------------------------------------------------------------------
@@ -434,6 +472,8 @@ def cmd_evaluate(args) -> int:
         exp = importlib.import_module(EXPERIMENTS[recipe.kind])
         name = recipe.name
     out = Path(args.out or Path("results") / (name + ("-fast" if args.fast else "")))
+    if out.exists() and not out.is_dir():
+        raise ValidationError("--out", str(out), "is a file; give a results folder")
     if out.exists() and any(out.iterdir()) and not args.force:
         raise OutputExistsError(out)
     if args.json and Path(args.json).exists() and not args.force:

@@ -261,3 +261,44 @@ def test_an_unreachable_scheduler_is_one_line_and_leaves_nothing_behind(
         line = _one_line(capsys.readouterr().err)
         assert "cannot connect to the Dask scheduler" in line and repr(address) in line
         assert sorted(p.name for p in tmp_path.iterdir()) == ["d.toml"]
+
+
+def test_os_errors_and_defects_are_one_line_and_debug_shows_the_traceback(
+    tmp_path, capsys, monkeypatch
+):
+    """A full disk or a denied permission (simulated: the tests may run as root) is one line
+    with the path and the remedy, exit 2; an unexpected exception is one line pointing to
+    --debug, exit 1; --debug re-raises it."""
+    import errno
+
+    import phyloc.datasets
+
+    recipe = tmp_path / "d.toml"
+    recipe.write_text(DATASET)
+    out = str(tmp_path / "d.h5")
+    cases = [
+        (OSError(errno.ENOSPC, "No space left on device", out), 2, "disk is full"),
+        (PermissionError(errno.EACCES, "Permission denied", out), 2, "check the permissions"),
+        (RuntimeError("a defect"), 1, "run with --debug for the traceback"),
+    ]
+    for exc, code, text in cases:
+
+        def fail(*args, _exc=exc, **kwargs):
+            raise _exc
+
+        monkeypatch.setattr(phyloc.datasets, "generate", fail)
+        assert main(["generate", str(recipe), "-o", out]) == code
+        line = _one_line(capsys.readouterr().err)
+        assert text in line and (code == 1 or out in line)
+    with pytest.raises(RuntimeError, match="a defect"):
+        main(["--debug", "generate", str(recipe), "-o", out])
+
+
+def test_evaluate_out_that_is_a_file_is_refused(tmp_path, capsys):
+    recipe = tmp_path / "tiny.toml"
+    recipe.write_text(TINY)
+    target = tmp_path / "results.txt"
+    target.write_text("keep me")
+    assert main(["evaluate", str(recipe), "--out", str(target)]) == 2
+    assert "--out" in _one_line(capsys.readouterr().err)
+    assert target.read_text() == "keep me"
