@@ -302,3 +302,24 @@ def test_evaluate_out_that_is_a_file_is_refused(tmp_path, capsys):
     assert main(["evaluate", str(recipe), "--out", str(target)]) == 2
     assert "--out" in _one_line(capsys.readouterr().err)
     assert target.read_text() == "keep me"
+
+
+def test_sizes_that_cannot_fit_name_the_keys_the_user_wrote(tmp_path, capsys):
+    """A network too large for one HDF5 chunk names network.n_agents (not chunk_links, which
+    the user never wrote) and the size; a shard beyond this machine's memory names
+    dataset.shard_size and how much it would need."""
+    huge = tmp_path / "huge.toml"
+    huge.write_text(DATASET.replace("n_agents = 3", "n_agents = 1000000000"))
+    assert main(["generate", str(huge), "-o", str(tmp_path / "h.h5")]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "network.n_agents = 1000000000" in line and "GiB" in line and "chunk_links" in line
+    big = tmp_path / "big.toml"
+    big.write_text(
+        DATASET.replace("n_subcarriers = 65", "n_subcarriers = 2569")
+        .replace("n_agents = 3", "n_agents = 300")
+        .replace("realizations = 2\nshard_size = 1", "realizations = 1000\nshard_size = 1000")
+    )
+    assert main(["generate", str(big), "-o", str(tmp_path / "b.h5")]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert "dataset.shard_size = 1000" in line and "of memory" in line and "GiB" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.toml", "huge.toml"]

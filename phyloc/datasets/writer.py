@@ -144,6 +144,54 @@ class DatasetPlan:
         return dumps_toml(doc)
 
 
+def _gib(n_bytes: float) -> str:
+    return f"{n_bytes / 2**30:.3g} GiB"
+
+
+def _check_sizes(network, system, dataset) -> None:
+    """Refuse sizes that cannot be written or held, naming the keys that drive them: an HDF5
+    chunk of ``received`` beyond 4 GiB, and a shard whose waveforms exceed this machine's
+    memory."""
+    links = sc.max_possible_links(network.n_agents, network.n_anchors)
+    drivers = (
+        f"network.n_agents = {network.n_agents}, network.anchors = {network.n_anchors}, "
+        f"system.n_subcarriers = {system.n_subcarriers}, system.oversampling = "
+        f"{system.oversampling}"
+    )
+    per_chunk = dataset.chunk_links or links
+    if per_chunk * system.n_samples * 8 >= 2**32:
+        if dataset.chunk_links:
+            raise ValidationError(
+                "dataset.chunk_links",
+                dataset.chunk_links,
+                f"a chunk of {per_chunk} links x {system.n_samples} samples (complex64) is "
+                f"{_gib(per_chunk * system.n_samples * 8)}, beyond the 4 GiB HDF5 chunk limit; "
+                "set chunk_links to fewer links",
+            )
+        raise ValidationError(
+            "network.n_agents",
+            network.n_agents,
+            f"one snapshot has up to {links} links x {system.n_samples} samples = "
+            f"{_gib(links * system.n_samples * 8)} (complex64; {drivers}), beyond the 4 GiB "
+            "HDF5 chunk limit: set dataset.chunk_links to split it, or use a smaller network",
+        )
+    # a shard's waveforms in memory: complex128 spectra + complex64 samples per link
+    shard = dataset.shard_size * network.motion.n_snapshots * links * system.n_samples * 24
+    try:
+        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return
+    if shard > memory:
+        raise ValidationError(
+            "dataset.shard_size",
+            dataset.shard_size,
+            f"a shard of {dataset.shard_size} realizations x {network.motion.n_snapshots} "
+            f"snapshots x up to {links} links x {system.n_samples} samples needs about "
+            f"{_gib(shard)} of memory ({drivers}) and this machine has {_gib(memory)}: lower "
+            "shard_size or the network size",
+        )
+
+
 def plan_dataset(recipe) -> DatasetPlan:
     """Validate a dataset recipe completely (before any work) and return its plan.
 
@@ -170,14 +218,7 @@ def plan_dataset(recipe) -> DatasetPlan:
     channel = recipe.section("channel", ChannelSpec)
     dataset = recipe.section("dataset", DatasetSpec, required=True)
     system = recipe.system
-    per_chunk = dataset.chunk_links or sc.max_possible_links(network.n_agents, network.n_anchors)
-    if per_chunk * system.n_samples * 8 >= 2**32:
-        raise ValidationError(
-            "dataset.chunk_links",
-            dataset.chunk_links,
-            f"a chunk of {per_chunk} links x {system.n_samples} samples exceeds the 4 GiB HDF5 "
-            "chunk limit; set chunk_links to fewer links",
-        )
+    _check_sizes(network, system, dataset)
     canon = {
         "schema_major": sc.SCHEMA_MAJOR,
         "seed": recipe.seed,
