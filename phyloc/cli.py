@@ -622,7 +622,7 @@ def cmd_info(args) -> int:
         print(f"wrote {args.json}")
     if args.verify and not res.get("ok", True):
         print(
-            "phyloc: verify found missing or corrupt shards; repair with "
+            "phyloc: verify found a damaged master or missing or corrupt shards; repair with "
             "phyloc generate RECIPE -o FILE --resume",
             file=sys.stderr,
         )

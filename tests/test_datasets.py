@@ -13,6 +13,7 @@ import pytest
 
 import phyloc.datasets as pds
 from phyloc.datasets import schema as sc
+from phyloc.datasets.reader import check_shard_files
 from phyloc.datasets.writer import CRASH_ENV
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.parallel import task_seeds
@@ -474,3 +475,51 @@ def test_schema_1_0_files_stay_readable_but_are_not_opened_by_xarray(tmp_path, r
         assert ds.schema_version == "1.0" and ds.realization(0).network.n_nodes == 4
     with pytest.raises(pds.DatasetError, match=r"schema 1\.0, without dimension scales"):
         pds.open_xarray(out)
+
+
+def _flip_stored_byte(path, dataset, index=0):
+    """Flip one bit of ``dataset``'s raw bytes in the file itself (contiguous storage)."""
+    with h5py.File(path, "r") as f:
+        d = f[dataset]
+        offset = d.id.get_offset() + index * d.dtype.itemsize
+    with open(path, "r+b") as fh:
+        fh.seek(offset)
+        byte = fh.read(1)
+        fh.seek(offset)
+        fh.write(bytes([byte[0] ^ 0x04]))
+
+
+def test_verify_checks_the_master_itself(tmp_path, reference):
+    """The master's own content is checksummed: a bit flipped in its shard table on disk, an
+    attribute changed or a group deleted is reported by ``verify`` (and makes ``ok`` False),
+    while every shard still verifies; a missing root attribute is a clear DatasetError."""
+    sound = pds.verify(reference[0])
+    assert sound["ok"] and sound["master_ok"] and "master" not in sound["problems"]
+    with h5py.File(reference[0], "r") as f:
+        assert len(sc._text(f.attrs[sc.MASTER_DIGEST_ATTR])) == 64
+
+    cases = {
+        "flip": lambda p: _flip_stored_byte(p, "shards/bytes", 1),
+        "attribute": lambda p: _edit(p, lambda f: f.attrs.__setitem__("seed", 12)),
+        "group": lambda p: _edit(p, lambda f: f.__delitem__("channel")),
+        "units": lambda p: _edit(p, lambda f: f["received"].attrs.__setitem__("units", "W")),
+    }
+    for name, damage in cases.items():
+        case = tmp_path / name
+        case.mkdir()
+        out = _copy_dataset(reference[0], case)
+        damage(out)
+        res = pds.verify(out)
+        assert not res["ok"] and not res["master_ok"], name
+        assert res["shards_ok"] == 4 and "master" in res["problems"], name
+        with pytest.raises(pds.DatasetError, match="master"):
+            check_shard_files(out)
+    out = _copy_dataset(reference[0], tmp_path)
+    _edit(out, lambda f: f.attrs.__delitem__("scenario"))
+    with pytest.raises(pds.DatasetError, match=r"master file is corrupt.*scenario.*--resume"):
+        pds.open(out)
+
+
+def _edit(path, change):
+    with h5py.File(path, "r+") as f:
+        change(f)

@@ -877,6 +877,7 @@ def import_arrays(source, out, *, recipe=None, force: bool = False) -> Path:
             f.attrs["imported_from"] = label
             f.attrs["truth"] = ",".join(data.truth)
             f.attrs["node_order"] = data.node_order
+            f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)  # with the attributes above
     return out
 
 

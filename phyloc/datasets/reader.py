@@ -144,6 +144,13 @@ class Dataset:
             ) from None
         try:
             self._load_meta()
+        except (KeyError, ValueError, TypeError, OSError) as exc:
+            self.file.close()
+            raise sc.DatasetError(
+                f"{self.path}: the master file is corrupt or incomplete ({type(exc).__name__}: "
+                f"{exc}); `phyloc generate RECIPE -o {self.path} --resume` rebuilds it from its "
+                "shards"
+            ) from None
         except BaseException:
             self.file.close()
             raise
@@ -576,6 +583,23 @@ def info(path, *, verify: bool = False) -> dict:
     return out
 
 
+def check_master(ds: Dataset) -> str | None:
+    """What is wrong with an open dataset's master file itself, or None: an expected array,
+    group or dimension scale missing, or content that differs from the master's own SHA-256
+    (:func:`~phyloc.datasets.schema.master_digest`; files before schema 1.1 have none)."""
+    f = ds.file
+    for name in (*ds.array_names, "system", "shards"):
+        if name not in f:
+            return f"master: {name} is missing"
+    stored = sc._text(f.attrs.get(sc.MASTER_DIGEST_ATTR, ""))
+    if not stored:
+        version = tuple(int(x) for x in ds.schema_version.split(".")[:2])
+        return None if version < (1, 1) else "master: its content checksum is missing"
+    if sc.master_digest(f) != stored:
+        return "master: content differs from its SHA-256 (altered or corrupt)"
+    return None
+
+
 def verify_dataset(path) -> dict:
     """Check every shard of a dataset completely (``phyloc info --verify``).
 
@@ -596,6 +620,9 @@ def verify_dataset(path) -> dict:
         arrays = [sc.spec_of(n) for n in ds.array_names]
         sh = ds.shards
         missing, corrupt, problems, ok = [], [], {}, 0
+        master = check_master(ds)
+        if master:
+            problems["master"] = master
         for j in range(ds.n_shards):
             file = ds.path.parent / sh["file"][j]
             if not sh["complete"][j]:
@@ -618,7 +645,8 @@ def verify_dataset(path) -> dict:
             problems[j] = reason
     return {
         "verified": True,
-        "ok": not missing and not corrupt,
+        "ok": not missing and not corrupt and not master,
+        "master_ok": not master,
         "shards_ok": ok,
         "missing_shards": missing,
         "corrupt_shards": corrupt,
@@ -648,6 +676,12 @@ def check_shard_files(path) -> dict:
     n_bytes = 0
     with open_dataset(path) as ds:
         sh = ds.shards
+        master = check_master(ds)
+        if master:
+            raise sc.DatasetError(
+                f"dataset {ds.path}: {master}; `phyloc generate RECIPE -o {ds.path} --resume` "
+                "rebuilds the master from its shards"
+            )
         repair = f"run `phyloc info {ds.path} --verify` to list every problem and "
         repair += "`phyloc generate RECIPE -o DATASET --resume` to regenerate the shard"
         for j in range(ds.n_shards):

@@ -328,6 +328,60 @@ def sha256_h5(dset, *, max_bytes: int = 1 << 26) -> str:
     return h.hexdigest()
 
 
+MASTER_DIGEST_ATTR = "content_sha256"
+"""Root attribute of a master file (schema >= 1.1): :func:`master_digest` of its content."""
+
+#: Attributes kept out of the digest: the digest itself and the dimension-scale bookkeeping
+#: (object references, rebuilt by HDF5 from the scales that are hashed).
+_UNHASHED_ATTRS = frozenset({MASTER_DIGEST_ATTR, "DIMENSION_LIST", "REFERENCE_LIST"})
+
+
+def _canonical(value) -> bytes:
+    a = np.asarray(value)
+    if a.dtype.kind in "OSUV":
+        return repr(a.tolist()).encode()
+    return a.dtype.str.encode() + repr(a.shape).encode() + np.ascontiguousarray(a).tobytes()
+
+
+def master_digest(f) -> str:
+    """SHA-256 of everything a master file holds itself: every group and dataset name, every
+    attribute (but the digest and the dimension-scale references), the data of its real
+    datasets (shard table, path bases, dimension scales) and, for each virtual dataset, its
+    shape, type and mapping (shard file, dataset, selections). A flipped byte in the master's
+    arrays or attributes, or a deleted group or attribute, changes it.
+
+    ``f`` is an open ``h5py.File``.
+    """
+    import h5py
+
+    h = hashlib.sha256()
+
+    def attrs(obj):
+        for key in sorted(obj.attrs):
+            if key not in _UNHASHED_ATTRS:
+                h.update(key.encode() + b"\0" + _canonical(obj.attrs[key]))
+
+    names = []
+    f.visit(names.append)
+    attrs(f)
+    for name in sorted(names):
+        obj = f[name]
+        h.update(b"\1" + name.encode())
+        attrs(obj)
+        if not isinstance(obj, h5py.Dataset):
+            continue
+        h.update(obj.dtype.str.encode() + repr(obj.shape).encode())
+        if obj.is_virtual:
+            for vs in obj.virtual_sources():
+                bounds = vs.vspace.get_select_bounds() if obj.shape else ()
+                h.update(repr((vs.file_name, vs.dset_name, bounds)).encode())
+        elif obj.dtype.kind == "O":
+            h.update(_canonical(obj.asstr()[...]))
+        else:
+            h.update(_canonical(obj[...]))
+    return h.hexdigest()
+
+
 def sha256_file(path, *, block: int = 1 << 22) -> str:
     """SHA-256 (hex) of a file's bytes."""
     h = hashlib.sha256()

@@ -576,6 +576,7 @@ def write_master(out, plan: DatasetPlan, records, *, created: str | None = None)
             for a in arrays:
                 _write_master_array(f, a, dims, done, path_offset, sdir.name)
             _write_dimension_scales(f, plan, dims, arrays)
+            f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)  # last: covers the rest
         os.replace(tmp, out)
     except BaseException:
         with contextlib.suppress(OSError):
