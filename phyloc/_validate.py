@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from pathlib import Path
@@ -95,6 +96,8 @@ def check_keys(table: dict, allowed, where: str) -> None:
     """
     import difflib
 
+    if not isinstance(table, dict):
+        raise ValidationError(where, table, "must be a table ([section] or { key = value })")
     allowed = list(allowed)
     for key in table:
         if key not in allowed:
@@ -103,6 +106,57 @@ def check_keys(table: dict, allowed, where: str) -> None:
             raise ValidationError(
                 join(where, key), table[key], f"unknown key; {hint}valid keys: {', '.join(allowed)}"
             )
+
+
+_KINDS = {
+    "bool": ((bool,), "true or false"),
+    "integer": ((int, float), "an integer"),
+    "number": ((int, float), "a number"),
+    "text": ((str,), "a string"),
+    "list": ((list, tuple), "a list [ … ]"),
+    "table": ((dict,), "a table { … }"),
+}
+
+
+def _kind(default) -> str | None:
+    if isinstance(default, bool):
+        return "bool"
+    if isinstance(default, int):
+        return "integer"
+    if isinstance(default, float):
+        return "number"
+    if isinstance(default, str):
+        return "text"
+    if isinstance(default, (list, tuple)):
+        return "list"
+    if isinstance(default, dict):
+        return "table"
+    return None
+
+
+def check_types(cls, table: dict, where: str) -> None:
+    """Raise :class:`ValidationError` for the first value of ``table`` whose TOML type differs
+    from the type of the default of the dataclass field of that name (a number where a list is
+    expected, a string where a number is, …), before the dataclass sees it. Fields without a
+    default, or with a default of None, are left to the dataclass's own checks."""
+    for f in dataclasses.fields(cls):
+        if f.name not in table:
+            continue
+        if f.default is not dataclasses.MISSING:
+            default = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            default = f.default_factory()
+        else:
+            continue
+        kind = _kind(default)
+        if kind is None:
+            continue
+        types, words = _KINDS[kind]
+        value = table[f.name]
+        numeric = kind in ("integer", "number")
+        bad = not isinstance(value, types) or (numeric and isinstance(value, bool))
+        if bad:
+            raise ValidationError(join(where, f.name), value, f"must be {words}")
 
 
 def unreadable_file(path) -> str | None:

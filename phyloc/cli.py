@@ -47,6 +47,7 @@ import time
 from datetime import UTC
 
 from phyloc.errors import PhylocError, ValidationError
+from phyloc.evaluation.recipes import EXPERIMENTS, validate_recipe
 
 BENCHMARKS = {
     "phy": "phyloc.benchmarks.bench_phy",
@@ -432,16 +433,6 @@ def _generic_table(fig: dict) -> str:
 
 
 # -- evaluate --------------------------------------------------------------------------------
-EXPERIMENTS = {
-    "ranging": "phyloc.evaluation.ranging_experiment",
-    "localization": "phyloc.evaluation.localization_experiment",
-    "tracking": "phyloc.evaluation.tracking_experiment",
-    "static": "phyloc.evaluation.static_experiment",
-    "direct_tracking": "phyloc.evaluation.direct_tracking_experiment",
-    "control": "phyloc.evaluation.control_experiment",
-    "cci": "phyloc.evaluation.cci_experiment",
-    "belief_shift": "phyloc.evaluation.belief_shift_experiment",
-}
 
 
 def cmd_evaluate(args) -> int:
@@ -470,6 +461,7 @@ def cmd_evaluate(args) -> int:
                 "recipes; generate a dataset recipe with phyloc generate",
             )
         exp = importlib.import_module(EXPERIMENTS[recipe.kind])
+        validate_recipe(recipe)  # the full and the fast setting, before any work
         name = recipe.name
     out = Path(args.out or Path("results") / (name + ("-fast" if args.fast else "")))
     if out.exists() and not out.is_dir():
@@ -556,9 +548,7 @@ def cmd_generate(args) -> int:
             "phyloc generate takes a dataset recipe "
             '(kind = "dataset"); run experiment recipes with phyloc evaluate',
         )
-    from phyloc.evaluation.localization_experiment import check_dataset_recipe
-
-    check_dataset_recipe(recipe)  # [experiment], [ranging], [localization]: before any work
+    validate_recipe(recipe)  # incl. [experiment], [ranging], [localization]: before any work
     summary = generate(
         recipe,
         args.output,

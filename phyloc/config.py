@@ -86,6 +86,8 @@ class Recipe:
         if name not in self.sections and required:
             raise ValidationError(name, "missing", f"recipe section [{name}] is required")
         raw = self.sections.get(name, {})
+        if not isinstance(raw, dict):
+            raise ValidationError(name, raw, f"must be a table: a [{name}] section")
         if spec_cls is None:
             return raw
         try:

@@ -28,5 +28,8 @@ class ValidationError(PhylocError, ValueError):
 
 
 def _short(value) -> str:
-    text = value if isinstance(value, str) else repr(value)
+    """The value as the message shows it: one line (strings with control characters or
+    surrounding blanks in quotes, as repr shows them), at most 80 characters."""
+    plain = isinstance(value, str) and value.isprintable() and value.strip() == value and value
+    text = value if plain else repr(value)
     return text if len(text) <= 80 else text[:77] + "..."

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import check_keys, check_types
 from phyloc.control.fim import control_set
 from phyloc.control.policies import PolicySpec, decide
 from phyloc.control.search import ControlProblem
@@ -151,6 +151,7 @@ class ControlScenario:
         """From ``[network]``; unknown keys are errors naming the closest valid key."""
         names = [f.name for f in dataclasses.fields(cls) if f.init]
         check_keys(d, names, "network")
+        check_types(cls, d, "network")
         d = {k: tuple(x) if isinstance(x, list) else x for k, x in d.items()}
         return cls(**d)
 

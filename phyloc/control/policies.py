@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import check_keys, check_types
 from phyloc.control.search import SEARCHES, ControlProblem, search
 from phyloc.errors import ValidationError
 
@@ -77,6 +77,7 @@ class PolicySpec:
     def from_dict(cls, d: dict, where: str = "policy") -> PolicySpec:
         """From a recipe table; unknown keys are errors naming the closest valid key."""
         check_keys(d, [f.name for f in dataclasses.fields(cls)], where)
+        check_types(cls, d, where)
         try:
             return cls(**d)
         except ValidationError as exc:

@@ -21,7 +21,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import check_keys, check_types
 from phyloc.errors import ValidationError
 
 COMPRESSIONS = ("none", "gzip", "lzf")
@@ -104,6 +104,7 @@ class DatasetSpec:
         if not isinstance(d, dict):
             raise ValidationError(section, d, "must be a table of dataset settings")
         check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        check_types(cls, d, section)
         if "realizations" not in d:
             raise ValidationError(
                 f"{section}.realizations", None, "is required (number of realizations, >= 1)"

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from phyloc._validate import check_keys
+from phyloc._validate import check_keys, check_types
 from phyloc.errors import ValidationError
 
 
@@ -15,6 +15,8 @@ def experiment_from_dict(cls, d: dict, *, fast: bool = False):
     names = [f.name for f in dataclasses.fields(cls)]
     check_keys(d, [*names, "fast"], "experiment")
     check_keys(fast_over, names, "experiment.fast")
+    check_types(cls, d, "experiment")
+    check_types(cls, fast_over, "experiment.fast")
     if fast:
         d.update(fast_over)
     return cls(**d)

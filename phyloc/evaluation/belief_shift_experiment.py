@@ -65,9 +65,16 @@ class BeliefShiftSpec:
         return experiment_from_dict(cls, d, fast=fast)
 
 
+def prepare(recipe: Recipe, *, fast: bool = False):
+    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
+    full one) and return what it runs; no work is done (``phyloc evaluate`` and
+    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
+    return BeliefShiftSpec.from_dict(recipe.section("experiment"), fast=fast)
+
+
 def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
     """Run a ``kind = "belief_shift"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    exp = BeliefShiftSpec.from_dict(recipe.section("experiment"), fast=fast)
+    exp = prepare(recipe, fast=fast)
     n = recipe.system.n_subcarriers
     res = figure3(exp.nu, n, exp.delta_max, exp.points)
     return {

@@ -244,9 +244,16 @@ def _z(diff, se):
     return np.where(tiny, 0.0, z)
 
 
+def prepare(recipe: Recipe, *, fast: bool = False):
+    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
+    full one) and return what it runs; no work is done (``phyloc evaluate`` and
+    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
+    return CCIExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
+
+
 def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
     """Run a ``kind = "cci"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    exp = CCIExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
+    exp = prepare(recipe, fast=fast)
     res = study(
         exp.scenarios,
         recipe.system,

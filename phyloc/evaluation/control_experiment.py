@@ -182,13 +182,21 @@ def _task(payload, _seed_seq):
     return out, ex
 
 
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "control"`` recipe; returns ``{"figures", "series", "meta"}``."""
+def prepare(recipe: Recipe, *, fast: bool = False):
+    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
+    full one) and return what it runs; no work is done (``phyloc evaluate`` and
+    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
     exp = ControlExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
     scenario = ControlScenario.from_dict(dict(recipe.section("network")))
     est_name, est_opts = _estimator(recipe)
     make_estimator(est_name, est_opts)  # checked before any work
     plan = exp.plan()
+    return exp, scenario, est_name, est_opts, plan
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "control"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    exp, scenario, est_name, est_opts, plan = prepare(recipe, fast=fast)
     blocks = [
         list(range(s, min(s + exp.task_trials, exp.trials)))
         for s in range(0, exp.trials, exp.task_trials)

@@ -266,15 +266,22 @@ def _aligned_particles(parts, est_t, truth_t, is_anchor):
     return out
 
 
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "direct_tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    system = recipe.system
+def prepare(recipe: Recipe, *, fast: bool = False):
+    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
+    full one) and return what it runs; no work is done (``phyloc evaluate`` and
+    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
     exp = DirectTrackingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
     rspec = recipe.section("ranging", RangingSpec)
     lspec = recipe.section("localization", LocalizationSpec)
     chan = recipe.section("channel", ChannelSpec)
     nets = exp.networks(dict(recipe.section("network")))
-    plan = exp.plan(lspec)
+    return exp, rspec, lspec, chan, nets, exp.plan(lspec)
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "direct_tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    system = recipe.system
+    exp, rspec, lspec, chan, nets, plan = prepare(recipe, fast=fast)
     payloads, keys = [], []
     for name, net in nets.items():
         keep = min(exp.particles_snapshot, net.motion.n_snapshots - 1)

@@ -172,6 +172,7 @@ class LocalizationSpec:
         per-method subtables."""
         d = dict(d)
         own = {k: d.pop(k) for k in PRIOR_KEYS if k in d}
+        v.check_types(cls, own, "localization")
         sub = {k: d.pop(k) for k in list(d) if isinstance(d[k], dict)}
         return cls(options=d, method_options=sub, **own)
 
@@ -538,16 +539,23 @@ def _nodes(agent_estimates, meas, agents, t=0):
     return full
 
 
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "localization"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    system = recipe.system
+def prepare(recipe: Recipe, *, fast: bool = False):
+    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
+    full one) and return what it runs; no work is done (``phyloc evaluate`` and
+    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
     exp = LocalizationExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
     rspec = recipe.section("ranging", RangingSpec)
     lspec = recipe.section("localization", LocalizationSpec)
     net_raw = dict(recipe.section("network"))
     chan = recipe.section("channel", ChannelSpec)
     nets = {n: NetworkSpec.from_dict({**net_raw, "n_agents": n}) for n in exp.agents}
-    specs = scenario_specs(chan, exp.scenarios)
+    return exp, rspec, lspec, nets, scenario_specs(chan, exp.scenarios)
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "localization"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    system = recipe.system
+    exp, rspec, lspec, nets, specs = prepare(recipe, fast=fast)
     payloads, keys = [], []
     for tok, spec in specs.items():
         for n in exp.agents:

@@ -110,6 +110,7 @@ class RangingSpec:
         d = dict(d)
         options = {m: d.pop(m) for m in list(d) if m in METHODS and isinstance(d[m], dict)}
         check_keys(d, ["methods", "beta", "window_m", "variance", "prior_range_m"], "ranging")
+        v.check_types(cls, d, "ranging")
         return cls(**d, options=options)
 
     def method_options(self, method: str) -> dict:
@@ -202,16 +203,23 @@ def _rmse(x) -> float:
     return float(math.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "ranging"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    system: OFDMSystem = recipe.system
+def prepare(recipe: Recipe, *, fast: bool = False):
+    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
+    full one) and return what it runs; no work is done (``phyloc evaluate`` and
+    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
     exp = RangingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
     rspec = recipe.section("ranging", RangingSpec)
     net_raw = dict(recipe.section("network"))
     chan = recipe.section("channel", ChannelSpec)
     for n in exp.agents:  # validate every network before any work starts
         NetworkSpec.from_dict({**net_raw, "n_agents": n})
-    specs = scenario_specs(chan, exp.scenarios)
+    return exp, rspec, net_raw, scenario_specs(chan, exp.scenarios)
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "ranging"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    system: OFDMSystem = recipe.system
+    exp, rspec, net_raw, specs = prepare(recipe, fast=fast)
 
     payloads, keys = [], []
     for tok, spec in specs.items():

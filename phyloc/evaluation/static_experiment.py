@@ -413,11 +413,19 @@ def _run_method(name, meas, priors, options, rng):
     return REGISTRY[name].run(meas, prior, rng, options)
 
 
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "static"`` recipe; returns ``{"figures", "series", "meta"}``."""
+def prepare(recipe: Recipe, *, fast: bool = False):
+    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
+    full one) and return what it runs; no work is done (``phyloc evaluate`` and
+    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
     exp = StaticExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
     localization = recipe.section("localization")
     opts = method_options(localization, exp)
+    return exp, localization, opts
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "static"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    exp, localization, opts = prepare(recipe, fast=fast)
     results = run_tasks(
         _task,
         [(exp, localization)] * exp.topologies,

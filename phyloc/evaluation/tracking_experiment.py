@@ -276,6 +276,8 @@ def method_options(localization: dict, exp: TrackingExperimentSpec) -> dict:
         if not isinstance(raw, dict):
             raise ValidationError(f"localization.{m}", raw, "a table of method options")
         over = exp.method_options.get(m, {})
+        if not isinstance(over, dict):
+            raise ValidationError(f"experiment.method_options.{m}", over, "a table of options")
         method = METHODS[m]
         try:
             out[m] = method.make_options(raw, section=f"localization.{m}")
@@ -425,8 +427,10 @@ def _task(payload, seed_seq):
     return out
 
 
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
+def prepare(recipe: Recipe, *, fast: bool = False):
+    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
+    full one) and return what it runs; no work is done (``phyloc evaluate`` and
+    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
     exp = TrackingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
     exp.model()  # validates the model
     options = method_options(recipe.section("localization"), exp)
@@ -446,6 +450,12 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
             raise ValidationError(
                 f"experiment.scenarios.{tok}.{exc.field}", exc.value, exc.allowed
             ) from None
+    return exp, options, extra
+
+
+def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
+    """Run a ``kind = "tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
+    exp, options, extra = prepare(recipe, fast=fast)
     payloads, keys = [], []
     for tok, scen in exp.scenarios.items():
         for r in range(exp.runs):

@@ -98,7 +98,11 @@ class Method:
 
         Unknown keys raise :class:`~phyloc.errors.ValidationError` naming ``section.key``.
         """
+        from phyloc._validate import check_types
+
         merged = {**self.defaults, **(table or {})}
+        if dataclasses.is_dataclass(self.options):
+            check_types(self.options, merged, section)
         from_dict = getattr(self.options, "from_dict", None)
         if from_dict is not None:
             return from_dict(merged, section)

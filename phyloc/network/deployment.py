@@ -56,7 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import check_keys, check_types
 from phyloc.errors import ValidationError
 from phyloc.network.motion import MotionSpec, simulate_motion
 
@@ -369,6 +369,7 @@ class NetworkSpec:
         if not isinstance(d, dict):
             raise ValidationError(section, d, "must be a table (dict) of network settings")
         check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        check_types(cls, d, section)
         if "n_agents" not in d:
             raise ValidationError(f"{section}.n_agents", None, "is required (number of agents)")
         d = dict(d)

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import check_keys, check_types
 from phyloc.errors import ValidationError
 
 #: Motion models understood by :class:`MotionSpec` and :func:`simulate_motion`.
@@ -214,6 +214,7 @@ class MotionSpec:
         if not isinstance(d, dict):
             raise ValidationError(section, d, "must be a table (dict) of motion settings")
         check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        check_types(cls, d, section)
         return cls(**d)
 
     def to_dict(self) -> dict:

@@ -188,6 +188,7 @@ class OFDMSystem:
         """Build from a recipe section; unknown keys are errors naming the closest valid key."""
         allowed = [f.name for f in dataclasses.fields(cls)]
         v.check_keys(d, allowed, section)
+        v.check_types(cls, d, section)
         return cls(**d)
 
     def to_dict(self) -> dict:

@@ -140,6 +140,7 @@ class DPFOptions:
     def from_dict(cls, d: dict, section: str = "localization") -> DPFOptions:
         """From a recipe table (unknown keys are errors)."""
         check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
+        v.check_types(cls, d, section)
         return cls(**d)
 
     def gamma(self, k: int) -> float:

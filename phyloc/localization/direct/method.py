@@ -161,6 +161,8 @@ class DirectOptions:
         own = [f.name for f in dataclasses.fields(cls) if f.name != "dpf"]
         dpf_keys = [f.name for f in dataclasses.fields(DPFOptions)]
         check_keys(d, [*dpf_keys, *own], section)
+        v.check_types(cls, {k: d[k] for k in own if k in d}, section)
+        v.check_types(DPFOptions, d, section)
         dpf = DPFOptions(**{k: d[k] for k in dpf_keys if k in d})
         return cls(dpf=dpf, **{k: d[k] for k in own if k in d})
 
