@@ -19,6 +19,7 @@ https://docs.hdfgroup.org/; the h5py documentation, https://docs.h5py.org/.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from dataclasses import dataclass
@@ -108,6 +109,23 @@ class Snapshot:
         return from_time_domain(self.samples, self.system)
 
 
+#: What h5py raises when a file's bytes are damaged: a missing key or attribute, an
+#: undecodable type or a broken B-tree (phyloc turns them into :class:`DatasetError`).
+_CORRUPT = (KeyError, ValueError, TypeError, RuntimeError, OSError)
+
+
+@contextlib.contextmanager
+def _master_read(path):
+    """Turn h5py's errors while reading a damaged master into one :class:`DatasetError`."""
+    try:
+        yield
+    except _CORRUPT as exc:
+        raise sc.DatasetError(
+            f"{path}: the master file is corrupt ({type(exc).__name__}: {exc}); "
+            f"`phyloc generate RECIPE -o {path} --resume` rebuilds it from its shards"
+        ) from None
+
+
 class Dataset:
     """An open phyloc waveform dataset (use :func:`open_dataset`; a context manager).
 
@@ -144,7 +162,7 @@ class Dataset:
             ) from None
         try:
             self._load_meta()
-        except (KeyError, ValueError, TypeError, OSError) as exc:
+        except _CORRUPT as exc:
             self.file.close()
             raise sc.DatasetError(
                 f"{self.path}: the master file is corrupt or incomplete ({type(exc).__name__}: "
@@ -615,7 +633,7 @@ def verify_dataset(path) -> dict:
         ``missing_shards`` (not complete in the master, or file absent), ``corrupt_shards``
         (lists of shard indices) and ``problems`` (shard index → reason).
     """
-    with open_dataset(path) as ds:
+    with open_dataset(path) as ds, _master_read(ds.path):
         fp = sc._text(ds.file.attrs["recipe_fingerprint"])
         arrays = [sc.spec_of(n) for n in ds.array_names]
         sh = ds.shards
@@ -676,7 +694,8 @@ def check_shard_files(path) -> dict:
     n_bytes = 0
     with open_dataset(path) as ds:
         sh = ds.shards
-        master = check_master(ds)
+        with _master_read(ds.path):
+            master = check_master(ds)
         if master:
             raise sc.DatasetError(
                 f"dataset {ds.path}: {master}; `phyloc generate RECIPE -o {ds.path} --resume` "
