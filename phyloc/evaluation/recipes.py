@@ -1,4 +1,10 @@
-"""Which module runs each recipe kind, and the complete check of a recipe before any work."""
+"""Which module runs each recipe kind, and the complete check of a recipe before any work.
+
+References
+----------
+TOML v1.0.0, https://toml.io/en/v1.0.0 (the recipe format); the recipe keys of each experiment
+are documented in ``datasets/README.md`` and the user guide's recipe pages.
+"""
 
 from __future__ import annotations
 
