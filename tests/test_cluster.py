@@ -1,0 +1,156 @@
+"""A real Dask cluster: a scheduler and two workers as processes on 127.0.0.1, one worker killed
+mid-run. ``generate --scheduler`` finishes and its dataset is bit-identical to an in-process
+one; ``evaluate --scheduler`` of a Monte Carlo recipe gives the in-process figures."""
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+
+import phyloc.datasets as pds
+from phyloc.cli import main
+
+pytestmark = pytest.mark.cluster
+
+DATASET = """
+kind = "dataset"
+name = "cl"
+seed = 21
+[system]
+n_subcarriers = 257
+subcarrier_spacing_hz = 146.5e3
+[network]
+n_agents = 4
+region_m = [60.0, 60.0]
+[channel]
+scenario = "winner2_c2"
+[dataset]
+realizations = 16
+shard_size = 1
+"""
+
+RANGING = """
+kind = "ranging"
+name = "clr"
+seed = 4
+[system]
+n_subcarriers = 257
+subcarrier_spacing_hz = 146.5e3
+[network]
+region_m = [60.0, 60.0]
+[ranging]
+methods = ["corr", "sage"]
+[ranging.sage]
+n_paths = 3
+n_iter = 3
+[experiment]
+scenarios = { c2 = "winner2_c2" }
+agents = [4]
+realizations = 6
+awgn_snr_db = [20, 30]
+awgn_links = 60
+"""
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _wait_for(predicate, seconds, what):
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        if predicate():
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"timed out waiting for {what}")
+
+
+def _listening(port) -> bool:
+    with socket.socket() as s:
+        return s.connect_ex(("127.0.0.1", port)) == 0
+
+
+@pytest.fixture
+def cluster(tmp_path):
+    """``(address, workers)``: a scheduler and two single-threaded workers without nannies
+    (a killed worker stays dead), torn down afterwards."""
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    env = {**os.environ, "PHYLOC_NO_PROGRESS": "1"}
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "env": env}
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
+             "--port", str(port), "--no-dashboard"],
+            **quiet,
+        )
+    ]  # fmt: skip
+    try:
+        _wait_for(lambda: _listening(port), 60, "the scheduler")
+        workers = [
+            subprocess.Popen(
+                [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads",
+                 "1", "--no-nanny", "--no-dashboard", "--name", f"w{i}"],
+                **quiet,
+            )
+            for i in range(2)
+        ]  # fmt: skip
+        procs += workers
+        from dask.distributed import Client
+
+        with Client(address, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address, workers
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+            p.wait(timeout=30)
+
+
+def test_generate_on_a_cluster_survives_a_killed_worker_bit_identically(tmp_path, cluster):
+    address, workers = cluster
+    recipe = tmp_path / "cl.toml"
+    recipe.write_text(DATASET)
+    out = tmp_path / "cluster.h5"
+    env = {**os.environ, "PHYLOC_NO_PROGRESS": "1"}
+    run = subprocess.Popen(
+        [sys.executable, "-m", "phyloc.cli", "generate", str(recipe), "-o", str(out),
+         "--scheduler", address],
+        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    shards = pds.schema.shard_dir(out)
+    _wait_for(lambda: len(list(shards.glob("shard-*.h5"))) >= 2, 120, "two finished shards")
+    workers[0].send_signal(signal.SIGKILL)
+    done_at_kill = len(list(shards.glob("shard-*.h5")))
+    assert done_at_kill < 16  # mid-run: shards were still to come
+    _, stderr = run.communicate(timeout=240)
+    assert run.returncode == 0, stderr
+    assert workers[0].wait(timeout=10) == -signal.SIGKILL
+    assert pds.verify(out)["ok"]
+    ref = tmp_path / "local.h5"
+    pds.generate(DATASET, ref, progress=False)
+    with pds.open(out) as a, pds.open(ref) as b:
+        assert a.checksums() == b.checksums()
+
+
+def test_evaluate_on_a_cluster_gives_the_in_process_figures(tmp_path, cluster, monkeypatch):
+    address, _ = cluster
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    recipe = tmp_path / "clr.toml"
+    recipe.write_text(RANGING)
+    runs = {}
+    for label, extra in (("cluster", ["--scheduler", address]), ("local", [])):
+        out = tmp_path / label
+        assert main(["evaluate", str(recipe), "--out", str(out), "--no-progress", *extra]) == 0
+        runs[label] = json.loads((out / "results.json").read_text())["figures"]
+    same = {k for k in runs["local"] if not k.startswith("run.") and "seconds" not in k}
+    assert same and {k: runs["cluster"][k] for k in same} == {k: runs["local"][k] for k in same}
+    assert runs["cluster"]["run.workers"] == 0  # a scheduler: the worker count is not ours
