@@ -165,6 +165,15 @@ def test_log_normalize_kernel_matches_scipy_and_falls_back_to_uniform(rng):
         np.testing.assert_array_equal(np.isfinite(out[a]), np.isfinite(ref))
         assert np.exp(out[a]).sum() == pytest.approx(1.0, rel=1e-12)
     np.testing.assert_array_equal(out[3:], -np.log(300))
+    # log-likelihoods of ~1e24 nats (+200 dBm): a constant row and a row whose spread is below
+    # the rounding step of its magnitude still normalize to weights summing to 1 (with
+    # lw − (max + log Σ) every particle at the maximum got weight 1: a sum of Q)
+    huge = np.full((2, 1000), 1.4e24)
+    huge[1, ::2] += 2.0**28  # one ulp at 1.4e24
+    out, bad = P.normalize_log_weights(huge)
+    assert bad == 0
+    np.testing.assert_allclose(np.exp(out).sum(axis=1), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(np.exp(out[0]), 1e-3, rtol=1e-12)
 
 
 def test_systematic_resampling_matches_twin_and_textbook(rng):

@@ -156,7 +156,8 @@ def next_lambda_kernel(lw, delta, lam, ess_target, n_bisect, out):
 
 @njit(cache=True)
 def log_normalize_kernel(lw, out):
-    """``out[a] = lw[a] − log Σ_q exp(lw[a, q])`` per row (max-shifted log-sum-exp); a row
+    """``out[a] = lw[a] − log Σ_q exp(lw[a, q])`` per row, computed as ``(lw − max) − log Σ
+    exp(lw − max)`` so that rows sum to 1 at any magnitude of ``lw``; a row
     with no finite weight, a NaN or a +inf becomes uniform (``−log Q``). Returns how many
     rows fell back to uniform."""
     n, Q = lw.shape
@@ -175,9 +176,11 @@ def log_normalize_kernel(lw, out):
             s = 0.0
             for q in range(Q):
                 s += np.exp(lw[a, q] - m)
-            lse = m + np.log(s)
+            # (lw − m) − log s, not lw − (m + log s): at |m| ~ 1e24 (extreme SNR) m + log s
+            # rounds to m and every particle at the maximum would get weight 1
+            log_s = np.log(s)
             for q in range(Q):
-                out[a, q] = lw[a, q] - lse
+                out[a, q] = (lw[a, q] - m) - log_s
         else:
             bad += 1
             for q in range(Q):
