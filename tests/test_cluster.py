@@ -11,6 +11,7 @@ import sys
 import time
 
 import pytest
+from test_cli import TINY
 
 import phyloc.datasets as pds
 from phyloc.cli import main
@@ -34,27 +35,10 @@ realizations = 16
 shard_size = 1
 """
 
-RANGING = """
-kind = "ranging"
-name = "clr"
-seed = 4
-[system]
-n_subcarriers = 257
-subcarrier_spacing_hz = 146.5e3
-[network]
-region_m = [60.0, 60.0]
-[ranging]
-methods = ["corr", "sage"]
-[ranging.sage]
-n_paths = 3
-n_iter = 3
-[experiment]
-scenarios = { c2 = "winner2_c2" }
-agents = [4]
-realizations = 6
-awgn_snr_db = [20, 30]
-awgn_links = 60
-"""
+# test_cli's tiny ranging recipe with enough realizations to spread over both workers
+RANGING = TINY.replace('name = "tiny"', 'name = "clr"').replace(
+    "realizations = 1", "realizations = 6"
+)
 
 
 def _free_port() -> int:

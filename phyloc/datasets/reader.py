@@ -161,14 +161,8 @@ class Dataset:
                 f"`phyloc generate RECIPE -o {self.path} --resume` rebuilds it"
             ) from None
         try:
-            self._load_meta()
-        except _CORRUPT as exc:
-            self.file.close()
-            raise sc.DatasetError(
-                f"{self.path}: the master file is corrupt or incomplete ({type(exc).__name__}: "
-                f"{exc}); `phyloc generate RECIPE -o {self.path} --resume` rebuilds it from its "
-                "shards"
-            ) from None
+            with _master_read(self.path):
+                self._load_meta()
         except BaseException:
             self.file.close()
             raise
