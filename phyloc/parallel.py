@@ -152,7 +152,11 @@ def local_cluster(workers: int):
             n_workers=int(workers),
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            # no dashboard; the scheduler's HTTP routes (health, metrics) on a free port: with
+            # ``dashboard_address=None`` Dask still binds 8787 and warns when another cluster
+            # (a second phyloc run) holds it
+            dashboard_address=":0",
+            scheduler_kwargs={"dashboard": False},
             silence_logs=40,
         )
 

@@ -69,3 +69,31 @@ def test_thread_policy_keeps_workers_times_threads_within_the_cores():
 
     alone = run_tasks(_task_environment, range(1), 3, progress=False)[0]
     assert alone[0] == numba.get_num_threads()
+
+
+def test_an_embedded_cluster_neither_needs_nor_warns_about_port_8787():
+    """A second phyloc run on the machine (port 8787 taken) starts its cluster silently: the
+    scheduler's HTTP routes take a free port and no dashboard is served."""
+    import socket
+    import warnings
+
+    from phyloc.parallel import local_cluster
+
+    holder = socket.socket()
+    holder.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        holder.bind(("", 8787))
+        holder.listen()
+    except OSError:  # somebody else holds it already: the situation under test
+        holder.close()
+        holder = None
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with local_cluster(1) as cluster:
+                port = cluster.scheduler.http_server.port
+        assert port != 8787
+        assert not [w for w in caught if "8787" in str(w.message)]
+    finally:
+        if holder is not None:
+            holder.close()
