@@ -2,6 +2,7 @@
 
 import fcntl
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -461,6 +462,40 @@ def test_xarray_opens_the_master_with_named_dimensions_and_coordinates(reference
     with h5py.File(out, "r") as f:
         np.testing.assert_array_equal(root["received"].values, f["received"][...])
         np.testing.assert_array_equal(nodes["positions"].values, f["nodes/positions"][...])
+
+
+def _h5dump(*args):
+    exe = shutil.which("h5dump")
+    if exe is None:
+        pytest.skip("h5dump (hdf5-tools) is not installed")
+    return subprocess.run([exe, *args], capture_output=True, text=True, check=True).stdout
+
+
+def test_h5dump_sees_every_array_its_dimension_scales_and_the_shards(reference):
+    """The HDF5 command-line tool (not h5py) reads the master as datasets/README.md says:
+    every array of the schema with its shape, a DIMENSION_LIST naming the scales of its
+    ``axes`` in order, virtual mappings to relative shard paths, and the waveform values."""
+    out, _ = reference
+    with h5py.File(out, "r") as f:
+        names = [sc._text(x) for x in f["shards/array_sha256"].attrs["arrays"]]
+        for name in names:
+            attrs = _h5dump("-A", "-d", f"/{name}", str(out))  # header and attribute values
+            space = re.search(r"DATASPACE\s+SIMPLE { \( ([\d, ]+) \)", attrs)
+            assert tuple(int(x) for x in space.group(1).split(",")) == f[name].shape, name
+            scales = re.findall(r'\(DATASET \d+ "(/[^"]+)"\)', attrs)
+            axes = sc._text(f[name].attrs["axes"]).split(",")
+            assert scales == [f"/{ax}" for ax in axes], name
+        layout = _h5dump("-p", "-H", "-A", "0", "-d", "/received", str(out))
+        files = re.findall(r'FILE "([^"]+)"', layout)
+        assert files == [f"ref.h5.shards/shard-{j:05d}.h5" for j in range(4)]
+        dump = _h5dump(
+            "-A", "0", "-m", "%.9g", "-d", "/received", "-s", "2,0,1,0", "-c", "1,1,1,3", str(out)
+        )
+        data = re.sub(r"\(\d+(,\d+)*\):", "", dump.split("DATA {", 1)[1])
+        values = [float(x) for x in re.findall(r"[-+]?\d[\d.]*(?:e[-+]?\d+)?", data)]
+        expected = f["received"][2, 0, 1, :3]
+        np.testing.assert_allclose(values[0::2], expected.real, rtol=1e-7)
+        np.testing.assert_allclose(values[1::2], expected.imag, rtol=1e-7)
 
 
 def test_schema_1_0_files_stay_readable_but_are_not_opened_by_xarray(tmp_path, reference):
