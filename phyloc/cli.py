@@ -2,8 +2,8 @@
 
 Commands:
 
-* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|analysis|all] [--quick]
-  [--json PATH]``: run benchmarks; print cost per unit of work and ratios to references.
+* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|analysis|memory|all]
+  [--quick] [--json PATH]``: run benchmarks; print cost per unit of work and ratios to references.
 * ``phyloc evaluate RECIPE|OUT.h5 [--fast] [--out DIR] [--json PATH]
   [--workers N | --scheduler ADDR] [--plugin MODULE]``: run an experiment recipe, or localize
   on a dataset's waveforms; write ``results.json``, the recipe and a PNG into DIR.
@@ -59,6 +59,7 @@ BENCHMARKS = {
     "nbp": "phyloc.benchmarks.bench_nbp",
     "control": "phyloc.benchmarks.bench_control",
     "analysis": "phyloc.benchmarks.bench_analysis",
+    "memory": "phyloc.benchmarks.bench_memory",
 }
 
 
