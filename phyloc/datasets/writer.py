@@ -837,6 +837,13 @@ def _generate(plan, out, sdir, t0, workers, scheduler, resume, progress) -> dict
             for j in range(S)
             if records[j] is None
         ]
+        in_process = scheduler is None and (workers is None or workers == 1)
+        stack = contextlib.ExitStack()
+        client = None
+        if tasks and not in_process:  # connect first: a bad address fails before the bar
+            from phyloc.parallel import dask_client
+
+            client = stack.enter_context(dask_client(workers=workers, scheduler=scheduler))
         show = progress and not os.environ.get("PHYLOC_NO_PROGRESS")
         bar = tqdm(
             total=S,
@@ -864,7 +871,7 @@ def _generate(plan, out, sdir, t0, workers, scheduler, resume, progress) -> dict
             bar.update(1)
 
         try:
-            if scheduler is None and (workers is None or workers == 1):
+            if in_process:
                 for task in tasks:
                     try:
                         rec = _write_shard(task)
@@ -873,9 +880,10 @@ def _generate(plan, out, sdir, t0, workers, scheduler, resume, progress) -> dict
                     else:
                         done(task, rec, None)
             elif tasks:
-                _run_dask(tasks, done, workers=workers, scheduler=scheduler)
+                _run_dask(client, tasks, done)
         finally:
             bar.close()
+            stack.close()
             write_master(out, plan, records, created=created)
     if failures:
         j, exc = failures[0]
@@ -908,25 +916,23 @@ def _generate(plan, out, sdir, t0, workers, scheduler, resume, progress) -> dict
     }
 
 
-def _run_dask(tasks, done, *, workers, scheduler) -> None:
+def _run_dask(client, tasks, done) -> None:
+    """Write the shards of ``tasks`` on the workers of ``client``; ``done`` as each ends."""
     from dask.distributed import as_completed
 
-    from phyloc.parallel import dask_client
-
-    with dask_client(workers=workers, scheduler=scheduler) as client:
-        tag = uuid.uuid4().hex[:8]
-        futures = {
-            client.submit(_write_shard, t, key=f"phyloc-shard-{t.index:05d}-{tag}", pure=False): t
-            for t in tasks
-        }
-        for fut in as_completed(futures):
-            task = futures[fut]
-            try:
-                rec = fut.result()
-            except Exception as exc:  # kept; reported after the rest
-                done(task, None, exc)
-            else:
-                done(task, rec, None)
+    tag = uuid.uuid4().hex[:8]
+    futures = {
+        client.submit(_write_shard, t, key=f"phyloc-shard-{t.index:05d}-{tag}", pure=False): t
+        for t in tasks
+    }
+    for fut in as_completed(futures):
+        task = futures[fut]
+        try:
+            rec = fut.result()
+        except Exception as exc:  # kept; reported after the rest
+            done(task, None, exc)
+        else:
+            done(task, rec, None)
 
 
 def _crash_hook() -> dict:
