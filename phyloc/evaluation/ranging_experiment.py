@@ -44,6 +44,7 @@ vector parameter estimation," IEEE Trans. Information Theory 43(2), pp. 624–63
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -64,6 +65,7 @@ from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
 from phyloc.phy.waveform import qpsk_symbols
 from phyloc.ranging import estimate, ranging_variance
+from phyloc.ranging.estimators import ESTIMATORS, ORACLES
 
 METHODS = ("corr", "first_peak", "sage", "sage_los")
 
@@ -103,6 +105,8 @@ class RangingSpec:
         if self.variance not in ("zzb", "crb"):
             raise ValidationError("ranging.variance", self.variance, "'zzb' or 'crb'")
         v.positive("ranging.prior_range_m", self.prior_range_m)
+        for m, opts in self.options.items():
+            _check_estimator_options(m, opts, self.method_options(m))
 
     @classmethod
     def from_dict(cls, d: dict) -> RangingSpec:
@@ -120,6 +124,36 @@ class RangingSpec:
             base["prior_range_m"] = self.prior_range_m
         key = "sage" if method == "sage_los" else method
         return {**base, **self.options.get(key, {})}
+
+
+def _check_estimator_options(method: str, own: dict, merged: dict) -> None:
+    """Validate ``[ranging.<method>]`` before any work: its keys against the estimator's
+    keyword options, then every value by a dry run of the estimator on a one-link table
+    (the estimator's own checks, its error renamed to the recipe key)."""
+    import inspect
+
+    fn = ESTIMATORS[ORACLES.get(method, method)]
+    params = inspect.signature(fn).parameters.values()
+    check_keys(own, [p.name for p in params if p.kind is p.KEYWORD_ONLY], f"ranging.{method}")
+    if "window_m" not in own:  # the recipe's window was checked above, for its own system
+        merged = {**merged, "window_m": (0.0, 300.0)}
+    try:
+        estimate(method, _dry_run_table(), los=np.ones(1, bool), **merged)
+    except ValidationError as err:
+        raise ValidationError(f"ranging.{method}.{err.field}", err.value, err.allowed) from None
+    except TypeError as err:  # a value of the wrong kind the estimator's checks did not name
+        raise ValidationError(f"ranging.{method}", own, f"options of {method}: {err}") from None
+
+
+@functools.lru_cache(maxsize=1)
+def _dry_run_table():
+    """A one-link correlation table: 2049 subcarriers at 10 kHz (30 km unambiguous range),
+    β = 4 (a 3.7 m grid)."""
+    system = OFDMSystem(n_subcarriers=2049, subcarrier_spacing_hz=1.0e4)
+    rng = np.random.default_rng(0)
+    S = qpsk_symbols(system, 1, rng)
+    R = synthesize(PathSet.single_path([40.0 / C0], [1e-6]), S, system, rng)
+    return correlation_tables(R, S, system, beta=4.0)
 
 
 @dataclass(frozen=True)
