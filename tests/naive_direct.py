@@ -48,14 +48,23 @@ def direct_loglik_numpy(
     return out
 
 
-def gauss_loglik_numpy(particles, offsets, nb_node, ranges, inv_var, centers):
-    """Twin of ``gauss_loglik_kernel``: Gaussian ranges with the ERV of DiPNet eq. (18)."""
+def gauss_loglik_numpy(
+    particles, offsets, nb_node, ranges, inv_var, centers, outlier_nats=np.inf, gamma=1.0
+):
+    """Twin of ``gauss_loglik_kernel``: Gaussian ranges with the ERV of DiPNet eq. (18), with
+    the outlier mixture ``γ·logaddexp(−½e²/var, −f)`` when ``outlier_nats`` f is finite."""
     n_agents, Q, _ = particles.shape
     out = np.zeros((n_agents, Q))
     for a in range(n_agents):
         for j in range(offsets[a], offsets[a + 1]):
             d = np.linalg.norm(particles[a] - centers[nb_node[j]], axis=1)
-            out[a] -= 0.5 * inv_var[j] * (d - ranges[j]) ** 2
+            if np.isfinite(outlier_nats):
+                if gamma == 0:
+                    continue
+                g = -0.5 * inv_var[j] / gamma * (d - ranges[j]) ** 2
+                out[a] += gamma * np.logaddexp(g, -outlier_nats)
+            else:
+                out[a] -= 0.5 * inv_var[j] * (d - ranges[j]) ** 2
     return out
 
 
@@ -132,7 +141,16 @@ def sampled_direct_numpy(
 
 
 def sampled_gauss_numpy(
-    particles, offsets, nb_node, ranges, inv_var, nb_points, nb_logw, nb_count, gamma
+    particles,
+    offsets,
+    nb_node,
+    ranges,
+    inv_var,
+    nb_points,
+    nb_logw,
+    nb_count,
+    gamma,
+    outlier_nats=np.inf,
 ):
     """Twin of ``sampled_gauss_kernel``: each link's message as a [Q_u, Q_v] matrix."""
     n_agents, Q, _ = particles.shape
@@ -143,7 +161,8 @@ def sampled_gauss_numpy(
             pts = nb_points[v, : nb_count[v]]
             d = np.linalg.norm(particles[a][:, None, :] - pts[None], axis=2)
             ell = -0.5 * inv_var[j] * (d - ranges[j]) ** 2
-            _add_numpy(out[a], _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]]), gamma)
+            msg = _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]])
+            _add_numpy(out[a], np.logaddexp(msg, -outlier_nats), gamma)
     return out
 
 

@@ -142,6 +142,13 @@ def test_loglik_kernels_match_numpy_twins(rng, dim):
     sub = np.empty((2, Q))  # a subset of the agents, in any order
     K.gauss_loglik_kernel(X[[2, 0]], np.array([2, 0]), offsets, nb, r, iv, centers, sub)
     np.testing.assert_array_equal(sub, out[[2, 0]])
+    for gamma in (0.7, 0.0):  # the outlier mixture, tempered (inv_var carries γ)
+        K.gauss_loglik_kernel(
+            X, np.arange(n_agents), offsets, nb, r, gamma * iv, centers, out, 4.0, gamma
+        )
+        ref = gauss_loglik_numpy(X, offsets, nb, r, gamma * iv, centers, 4.0, gamma)
+        np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-300)
+        assert np.all(out >= -gamma * 4.0 * np.diff(offsets)[:, None] - 1e-12)
 
 
 def test_log_normalize_kernel_matches_scipy_and_falls_back_to_uniform(rng):
@@ -824,3 +831,37 @@ def test_model_error_is_smoothing_like_a_known_neighbour_uncertainty(rng):
         MarginalDirectLikelihood(tab, links, amap, 1, model_error_m=-0.1)
     with pytest.raises(ValidationError, match="model_error_m"):
         DirectOptions(model_error_m=-1.0)
+
+
+def test_gaussian_outlier_bound_keeps_one_biased_certain_range_from_moving_the_maximum():
+    """At high SNR a range's model variance vanishes (here 1 mm²) while an NLOS bias does not
+    (here +20 m on one of four anchor links). The plain Gaussian of DiPNet §V-A puts its
+    maximum where the biased link is met, metres off; with the outlier bound the biased link
+    costs at most ``outlier_nats`` and the maximum is at the truth (brute-force grid)."""
+    truth = np.array([37.0, 61.0])
+    pos = np.vstack([[truth], ANCHORS])
+    is_anchor = np.array([False, True, True, True, True])
+    links = np.array([[0, j] for j in range(1, 5)])
+    r = np.linalg.norm(ANCHORS - truth, axis=1)
+    r[2] += 20.0
+    var = np.full(4, 1e-6)
+    centers, covs = pos, np.zeros((5, 2, 2))
+    g = np.linspace(-40, 40, 1601)  # 5 cm grid around the truth
+    X = (truth + np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2))[None]
+    best = {}
+    for f in (np.inf, 10.0):
+        lik = GaussianRangeLikelihood(
+            r, var, np.ones(4, bool), links, agent_map(is_anchor), 1, outlier_nats=f
+        )
+        ll = lik.loglik(X, centers, covs)[0]
+        assert np.all(np.isfinite(ll))
+        best[f] = np.linalg.norm(X[0, np.argmax(ll)] - truth)
+        if np.isfinite(f):  # each link costs at most f nats below its peak
+            assert ll.min() >= -4 * f - 1e-9
+    assert best[np.inf] > 1.0
+    assert best[10.0] < 0.05
+    # model error widens every link: σ² = var + model_error_m² (the curvature at the peak)
+    lik = GaussianRangeLikelihood(
+        r, var, np.ones(4, bool), links, agent_map(is_anchor), 1, model_error_m=0.5
+    )
+    np.testing.assert_allclose(lik.var, 1e-6 + 0.25)

@@ -55,6 +55,10 @@ def test_sampled_kernels_match_numpy_twins(rng):
     ref = sampled_gauss_numpy(X, offsets, nb, r, iv, pts, lw, cnt, 0.7)
     np.testing.assert_allclose(out, ref, rtol=1e-12)
     assert np.all(np.isfinite(out))
+    K.sampled_gauss_kernel(X, offsets, nb, r, iv, pts, lw, cnt, 0.7, out, 3.0)  # outlier bound
+    ref = sampled_gauss_numpy(X, offsets, nb, r, iv, pts, lw, cnt, 0.7, 3.0)
+    np.testing.assert_allclose(out, ref, rtol=1e-12)
+    assert np.all(out >= -0.7 * 3.0 * np.diff(offsets)[:, None] - 1e-12)  # ≥ −γf per link
     n_pk = np.array([1, 3, 0, 2, 4, 1])  # link 2 has no peak: the floor only
     pk_off = np.concatenate([[0], np.cumsum(n_pk)])
     pk_d, pk_h = rng.uniform(10, 120, pk_off[-1]), rng.uniform(0, 40, pk_off[-1])

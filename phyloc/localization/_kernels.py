@@ -79,28 +79,54 @@ def direct_loglik_kernel(
 
 
 @njit(cache=True, parallel=True)
-def gauss_loglik_kernel(particles, agents, offsets, nb_node, ranges, inv_var, centers, out):
-    """``out[r, q] = −½ Σ_j inv_var[j]·(‖x_{r,q} − c_{nb_node[j]}‖ − r_j)²`` over the links
-    ``j`` of agent ``a = agents[r]`` (row ``r`` of ``particles`` and ``out`` is that agent; a
-    subset of the agents may be evaluated).
+def gauss_loglik_kernel(
+    particles,
+    agents,
+    offsets,
+    nb_node,
+    ranges,
+    inv_var,
+    centers,
+    out,
+    outlier_nats=np.inf,
+    gamma=1.0,
+):
+    """``out[r, q] = Σ_j ℓ_j(‖x_{r,q} − c_{nb_node[j]}‖)`` over the links ``j`` of agent
+    ``a = agents[r]`` (row ``r`` of ``particles`` and ``out`` is that agent; a subset of the
+    agents may be evaluated), with ``ℓ_j(d) = −½ inv_var[j]·(d − r_j)²``.
 
     The Gaussian ranging model with the equivalent ranging variance (ERV) of DiPNet eq. (18):
-    ``1/inv_var = var_r + σ²_{v→uv}`` (times 1/γ when tempered).
+    ``1/inv_var = (var_r + σ²_{v→uv})/γ`` (γ the tempering exponent). With a finite
+    ``outlier_nats`` f, each link is a mixture with an outlier component,
+    ``ℓ_j = γ·log(e^{−½(d − r_j)²/var} + e^{−f})``, so one link moves a log-weight by at most
+    ``γ f`` (``inv_var`` is then divided by ``gamma`` to get ``1/var``; ``gamma = 0`` gives 0).
     """
     n_rows, Q, _ = particles.shape
+    robust = outlier_nats < np.inf
     for r in prange(n_rows):
         a = agents[r]
         xs = np.empty(Q)
         for q in range(Q):
             out[r, q] = 0.0
+        if robust and gamma == 0.0:
+            continue
         for j in range(offsets[a], offsets[a + 1]):
             c = centers[nb_node[j]]
             rj = ranges[j]
             w = 0.5 * inv_var[j]
             _link_distances(particles, r, c, 1.0, xs)
-            for q in range(Q):
-                e = xs[q] - rj
-                out[r, q] -= w * e * e
+            if robust:
+                w = w / gamma
+                for q in range(Q):
+                    e = xs[q] - rj
+                    u = w * e * e  # −log of the Gaussian part
+                    out[r, q] -= gamma * (
+                        min(u, outlier_nats) - np.log1p(np.exp(-abs(u - outlier_nats)))
+                    )
+            else:
+                for q in range(Q):
+                    e = xs[q] - rj
+                    out[r, q] -= w * e * e
 
 
 @njit(cache=True)
@@ -355,13 +381,24 @@ def sampled_direct_kernel(
 
 @njit(cache=True, parallel=True)
 def sampled_gauss_kernel(
-    particles, offsets, nb_node, ranges, inv_var, nb_points, nb_logw, nb_count, gamma, out
+    particles,
+    offsets,
+    nb_node,
+    ranges,
+    inv_var,
+    nb_points,
+    nb_logw,
+    nb_count,
+    gamma,
+    out,
+    outlier_nats=np.inf,
 ):
     """``out[a, q] = γ Σ_j log Σ_i exp(lw_{v,i} − ½ inv_var[j]·(‖x_{a,q} − y_{v,i}‖ − r_j)²)``.
 
     The sample-based message of the Gaussian ranging model (two-step, sample-based SAGE):
     range ``r_j`` with its model variance ``1/inv_var[j]``, the neighbour's belief particles in
-    place of its mean and the ERV of DiPNet eq. (18).
+    place of its mean and the ERV of DiPNet eq. (18). A finite ``outlier_nats`` f adds the
+    outlier component ``e^{−f}`` inside each link's log (``lw`` normalized).
     """
     n_agents, Q = particles.shape[:2]
     q_max = nb_points.shape[1]
@@ -380,6 +417,8 @@ def sampled_gauss_kernel(
                     e = _distance(particles, a, q, nb_points, v, i) - r
                     terms[i] = nb_logw[v, i] - w * e * e
                 msg[q] = _log_sum(terms, n_v)
+                if outlier_nats < np.inf:
+                    msg[q] = np.logaddexp(msg[q], -outlier_nats)
             _add_message(out[a], msg, gamma)
 
 

@@ -172,11 +172,37 @@ class GaussianRangeLikelihood:
         estimated SNR, DiPNet §V-A).
     valid : [n_links] bool
         Links without a range are left out (NLOS-rejected SAGE drops NLOS links this way).
+    outlier_nats : float
+        Bound on one link's evidence [nats] (default ``inf``: the plain Gaussian). A finite
+        ``f`` makes each link a mixture with an outlier component,
+        ``log(e^{−(d − r̂)²/(2σ²)} + e^{−f})``, the robustness
+        :class:`MarginalDirectLikelihood` has by the same key.
+    model_error_m : float
+        Range model error [m] added to every link's variance (``σ² = var + model_error_m²``
+        + the ERV term), for the range errors the thermal-noise variance leaves out.
+
+    The model variance of a range estimator (its ZZB/CRB at the estimated SNR) is a thermal
+    noise variance: it goes to 0 as the SNR grows, while an NLOS or multipath bias does not.
+    Without a bound and a floor, a biased range at high SNR is then *certain*, one link can
+    outweigh all the others, and a two-step filter's error grows with the transmit power;
+    ``outlier_nats`` and ``model_error_m`` keep the evidence of one link bounded.
     """
 
     kind = "gaussian"
 
-    def __init__(self, ranges, variances, valid, links, agent_of_node, n_agents, *, use_erv=True):
+    def __init__(
+        self,
+        ranges,
+        variances,
+        valid,
+        links,
+        agent_of_node,
+        n_agents,
+        *,
+        use_erv=True,
+        outlier_nats=np.inf,
+        model_error_m=0.0,
+    ):
         links = np.asarray(links, dtype=np.int64)
         valid = np.asarray(valid, bool)
         r = np.asarray(ranges, float)
@@ -186,8 +212,12 @@ class GaussianRangeLikelihood:
         keep = valid & np.isfinite(r) & np.isfinite(var) & (var > 0)
         self.csr = _Links(links[keep], agent_of_node, n_agents)
         idx = np.flatnonzero(keep)[self.csr.link_index]
+        self.outlier_nats = float(outlier_nats)
+        if not self.outlier_nats > 0:
+            raise ValidationError("outlier_nats", outlier_nats, "> 0 (inf: no bound)")
+        self.model_error_m = v.positive("model_error_m", model_error_m, allow_zero=True)
         self.ranges = r[idx]
-        self.var = var[idx]
+        self.var = var[idx] + self.model_error_m**2
         self.use_erv = bool(use_erv)
         self.nu = 1.0 / self.var
 
@@ -222,6 +252,8 @@ class GaussianRangeLikelihood:
                 inv_var,
                 c,
                 out,
+                self.outlier_nats,
+                float(gamma),
             )
             return out
 
@@ -663,5 +695,6 @@ class SampledLikelihood:
                 b.count,
                 float(gamma),
                 out,
+                base.outlier_nats,
             )
         return out

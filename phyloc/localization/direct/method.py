@@ -104,11 +104,15 @@ class DirectOptions:
         Range estimator whose ranges the ``"gaussian"`` likelihood reads
         (``measurements.ranges[ranges]``).
     outlier_nats : float
-        Bound on one link's evidence of the ``"marginal"`` likelihood [nats] (``inf``: the
-        plain marginal).
+        Bound on one link's evidence [nats] of the ``"marginal"`` and ``"gaussian"``
+        likelihoods (``inf``: the plain marginal, the plain Gaussian of DiPNet §V-A). For the
+        two-step methods it keeps a range whose thermal variance vanishes at high SNR while
+        its NLOS bias does not from outweighing every other link.
     model_error_m : float
-        Range model error [m] of the ``"marginal"`` likelihood (unresolved multipath; default
-        0), see :class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`.
+        Range model error [m] of the ``"marginal"`` and ``"gaussian"`` likelihoods (unresolved
+        multipath; default 0), see
+        :class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood` and
+        :class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood`.
     safeguards : bool
         False runs DiPNet Algorithm 1 as published (:meth:`DPFOptions.published`, keeping only
         ``n_particles``, ``n_iterations`` and ``interpolation`` of ``dpf``).
@@ -207,7 +211,14 @@ def link_likelihood(measurements: LinkMeasurements, t: int, options: DirectOptio
         )
     rs = m.range_set(options.ranges)
     return GaussianRangeLikelihood(
-        rs.range_m[t], rs.variance_m2[t], rs.valid[t], links, agent_of, n
+        rs.range_m[t],
+        rs.variance_m2[t],
+        rs.valid[t],
+        links,
+        agent_of,
+        n,
+        outlier_nats=options.outlier_nats,
+        model_error_m=options.model_error_m,
     )
 
 
