@@ -78,9 +78,52 @@ def test_truth_free_start_keys_are_validated():
     from phyloc.errors import ValidationError
 
     spec = lx.LocalizationSpec.from_dict({"init_robust_scale_m": 0.0, "init_pair_range": "mean"})
-    assert spec.init_robust_scale_m == 0.0 and spec.options == {}  # not a method option
+    assert spec.init_robust_scale_m == (0.0,) and spec.options == {}  # not a method option
     assert lx.LocalizationSpec().init_pair_range == "min"
     with pytest.raises(ValidationError, match="init_pair_range"):
         lx.LocalizationSpec.from_dict({"init_pair_range": "median"})
     with pytest.raises(ValidationError, match="init_robust_scale_m"):
         lx.LocalizationSpec.from_dict({"init_robust_scale_m": -2.0})
+
+
+INFORMED_ONLY = """
+kind = "localization"
+name = "informed_only"
+seed = 3
+[system]
+n_subcarriers = 257
+subcarrier_spacing_hz = 146.5e3
+tx_power_dbm = -40.0
+[network]
+region_m = [80.0, 80.0]
+[ranging]
+window_m = [0.0, 200.0]
+[localization]
+n_particles = 100
+n_iterations = 2
+[experiment]
+scenarios = { c2 = "winner2_c2" }
+agents = [4]
+realizations = 2
+methods = ["corr"]
+inits = ["informed"]
+cdf_agents = [4]
+"""
+
+
+def test_an_informed_only_run_reports_and_plots_its_own_rows(tmp_path, monkeypatch):
+    """Without a truth-free start, the unobservable-pair line and the CDF panel read the
+    informed rows (they used to look up truth-free keys: a KeyError and an empty panel)."""
+    from phyloc.config import load_recipe
+
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    res = lx.run(load_recipe(INFORMED_ONLY), progress=False)
+    frac = res["figures"]["c2.agents_4.unobservable_pair_fraction"]
+    assert frac > 0  # at −40 dBm some pairs have no detected link
+    lines = lx.summary_lines(res)
+    unobs = [ln for ln in lines if "unobservable" in ln]
+    assert len(unobs) == 1 and unobs[0].startswith("c2_informed, 4 agents")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # e.g. "No artists with labels found to put in legend"
+        lx.plot(res, tmp_path / "f.png")
+    assert (tmp_path / "f.png").stat().st_size > 0

@@ -20,7 +20,10 @@ every agent. Errors are then pooled over snapshots; the RMSE per snapshot is a s
     ``dipnet_published``  DiPNet Algorithm 1 as published: DiPNet eqs. (25)–(28) with the ENV, no
                           safeguards
     ``corr`` / ``first_peak`` / ``sage``   the two-step EL-DPF on that estimator's ranges with the
-                          ZZB ranging variance (DiPNet §V-A), same safeguards as ``dipnet``
+                          ZZB ranging variance (DiPNet §V-A), same safeguards as ``dipnet``,
+                          its per-link outlier bound ``outlier_nats`` included (``inf`` gives
+                          DiPNet §V-A's plain Gaussian, whose error grows with the SNR in NLOS
+                          channels: see :class:`~phyloc.localization.GaussianRangeLikelihood`)
     ``sage_los``          SAGE on LOS links only — an oracle benchmark (ground-truth NLOS rejection)
 
 The methods are the direct family of :data:`phyloc.localization.METHODS` (any registered
@@ -131,9 +134,10 @@ class LocalizationSpec:
     ``informed_std_m`` σ0 of the informed start [m]; ``gauge_extent_m`` half-width of the
     uniform gauge priors [m]; ``init_pair_range`` (``"min"``, or ``"mean"``) how the
     truth-free start combines the two directions' correlation ranges of a pair and
-    ``init_robust_scale_m`` (5 m; 0: plain SMACOF) the Cauchy scale of its robust
-    reweighting, ``init_restarts`` (default 10) the random SMACOF starts it adds to the MDS
-    start, the lowest robust cost winning
+    ``init_robust_scale_m`` (default ``[5.0, 2.0, 1.0]``; a number for one scale; 0: plain
+    SMACOF) the Cauchy scales of its robust reweighting, the configuration with the lowest
+    cost at the smallest scale winning, ``init_restarts`` (default 10) the random SMACOF
+    starts it adds to the MDS start, the lowest robust cost winning
     (:func:`~phyloc.localization.initialization.coarse_positions`). Every other
     key is an option of the direct family (:class:`~phyloc.localization.DirectOptions`: the
     :class:`~phyloc.localization.DPFOptions` fields, ``outlier_nats`` …), kept as written in
@@ -149,13 +153,22 @@ class LocalizationSpec:
     gauge_extent_m: float = 150.0
     method_options: dict = field(default_factory=dict)
     init_pair_range: str = "min"
-    init_robust_scale_m: float = 5.0
+    init_robust_scale_m: tuple = (5.0, 2.0, 1.0)
     init_restarts: int = 10
 
     def __post_init__(self):
         v.positive("localization.prior_std_m", self.prior_std_m)
         v.choice("localization.init_pair_range", self.init_pair_range, PAIR_COMBINE)
-        v.positive("localization.init_robust_scale_m", self.init_robust_scale_m, allow_zero=True)
+        raw = self.init_robust_scale_m
+        scales = tuple(
+            v.positive("localization.init_robust_scale_m", c, allow_zero=True)
+            for c in ((raw,) if np.ndim(raw) == 0 else raw)
+        )
+        if not scales or (0.0 in scales and len(scales) > 1):
+            raise ValidationError(
+                "localization.init_robust_scale_m", raw, "scales > 0 [m], or 0 (plain SMACOF)"
+            )
+        object.__setattr__(self, "init_robust_scale_m", scales)
         v.integer("localization.init_restarts", self.init_restarts, minimum=0)
         v.positive("localization.informed_std_m", self.informed_std_m)
         v.positive("localization.gauge_extent_m", self.gauge_extent_m)
@@ -172,6 +185,9 @@ class LocalizationSpec:
         per-method subtables."""
         d = dict(d)
         own = {k: d.pop(k) for k in PRIOR_KEYS if k in d}
+        scale = own.get("init_robust_scale_m")
+        if isinstance(scale, int | float) and not isinstance(scale, bool):
+            own["init_robust_scale_m"] = [scale]  # one scale, written as a number
         v.check_types(cls, own, "localization")
         sub = {k: d.pop(k) for k in list(d) if isinstance(d[k], dict)}
         return cls(options=d, method_options=sub, **own)
@@ -251,7 +267,7 @@ def _priors(init, net, links, corr, lspec, Q, rng):
         anchors = pos[net.is_anchor] if net.n_anchors else None
         robust = {
             "combine": lspec.init_pair_range,
-            "robust_scale_m": lspec.init_robust_scale_m or None,
+            "robust_scale_m": tuple(c for c in lspec.init_robust_scale_m if c > 0) or None,
             "n_restarts": lspec.init_restarts,
             "rng": rng,
         }
@@ -813,13 +829,14 @@ def summary_lines(results: dict):
             )
         for k in meta["agents"]:
             frac = f.get(f"{tok}.agents_{k}.unobservable_pair_fraction", 0.0)
-            if frac > 0:
+            for init in meta["inits"] if frac > 0 else ():
+                tag = tok + INITS[init]
                 obs = ", ".join(
-                    f"{m} {f[f'{m}.{tok}.agents_{k}.framework_rmse_observable_m']:.3g}"
+                    f"{m} {f[f'{m}.{tag}.agents_{k}.framework_rmse_observable_m']:.3g}"
                     for m in meta["methods"]
                 )
                 out.append(
-                    f"{tok}, {k} agents: {100 * frac:.1f} % of the pairs unobservable "
+                    f"{tag}, {k} agents: {100 * frac:.1f} % of the pairs unobservable "
                     f"(no detected links fix them); RMSE over the rest [m]: {obs}"
                 )
     rt = ", ".join(
@@ -858,14 +875,16 @@ def plot(results: dict, path) -> None:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=6, ncol=2)
         ax = axes[1, j]
+        init = "truth_free" if "truth_free" in meta["inits"] else next(iter(meta["inits"]))
+        tag = tok + INITS[init]
         for n, ls in zip(
-            sorted({*meta["agents"]} & set(_cdf_sizes(ser, meta, tok))), ("-", "--"), strict=False
+            sorted({*meta["agents"]} & set(_cdf_sizes(ser, meta, tag))), ("-", "--"), strict=False
         ):
             for i, m in enumerate(meta["methods"]):
-                k = f"{m}.{tok}.agents_{n}.error_cdf"
+                k = f"{m}.{tag}.agents_{n}.error_cdf"
                 if k in ser:
                     ax.plot(ser["cdf_grid_m"], ser[k], ls, color=f"C{i}", label=f"{m}, {n} agents")
-        ax.set_title(f"{tok} (truth-free): error CDF")
+        ax.set_title(f"{tok} ({init.replace('_', '-')} start): error CDF")
         ax.set_xlabel("absolute framework distance error [m]")
         ax.set_ylabel("CDF")
         ax.grid(True, alpha=0.3)

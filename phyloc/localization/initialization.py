@@ -456,9 +456,30 @@ def _robust_fit(D, measured, X, c, rounds, n_iter, tol):
     for _ in range(rounds):
         W = _cauchy_weights(D, measured, X, c)
         X, s = smacof(D, W, X, n_iter=n_iter, tol=tol)
+    return X, W, s, _total_cauchy_cost(D, measured, X, c)
+
+
+def _total_cauchy_cost(D, measured, X, c) -> float:
+    """``Σ_{i<j} w_ij log(1 + (r_ij/c)²)`` over the measured pairs at configuration ``X``."""
     r = D - _pairwise(X)
-    cost = float(np.sum(np.triu(measured * np.log1p((r / c) ** 2), 1)))
-    return X, W, s, cost
+    return float(np.sum(np.triu(measured * np.log1p((r / c) ** 2), 1)))
+
+
+def _robust_solution(D, measured, starts, c, rounds, n_iter, tol, fixed):
+    """The robust fit at scale ``c`` of :func:`coarse_positions`: every start through
+    :func:`_robust_fit` (the lowest cost wins), then :func:`relocate_nodes` and, when a node
+    moved, a refit kept if its cost is lower. Returns ``(X, W, stress)``."""
+    best = None
+    for Xs in starts:
+        fit = _robust_fit(D, measured, Xs, c, rounds, n_iter, tol)
+        if best is None or fit[3] < best[3]:
+            best = fit
+    X, moved = relocate_nodes(D, measured, best[0], c, fixed=fixed)
+    if moved.size:  # refine the repaired configuration the same way
+        fit = _robust_fit(D, measured, X, c, rounds, n_iter, tol)
+        if fit[3] < best[3]:
+            return fit[:3]
+    return best[:3]
 
 
 def relocate_nodes(D, W, X, c, *, fixed=None, n_grid=41, min_gain=2.0, n_passes=2):
@@ -644,8 +665,11 @@ def coarse_positions(
         SMACOF iteration limit and relative tolerance, see :func:`smacof`.
     combine : {"mean", "min"}
         How the ranges of one pair are combined, see :func:`range_matrix`.
-    robust_scale_m : float, optional
+    robust_scale_m : float or sequence of float, optional
         Cauchy scale ``c`` [m] of the reweighting rounds (> 0); ``None``: plain SMACOF.
+        Several scales: the robust fit runs at each, and the configuration with the lowest
+        Cauchy cost at the *smallest* scale wins (one objective; the larger scales are other
+        ways into its basin — with many NLOS ranges a single scale can fold the network).
     robust_rounds : int
         Reweighting rounds (>= 1) when ``robust_scale_m`` is given.
     invalid_weight : float
@@ -678,7 +702,10 @@ def coarse_positions(
         _rng(rng)
     D, W = range_matrix(links, ranges, n, valid, combine=combine, invalid_weight=invalid_weight)
     if robust_scale_m is not None:
-        c = v.positive("robust_scale_m", robust_scale_m)
+        scales = np.atleast_1d(np.asarray(robust_scale_m, dtype=object))
+        if scales.ndim != 1 or scales.size == 0:
+            raise ValidationError("robust_scale_m", robust_scale_m, "a scale > 0 [m] or a list")
+        scales = sorted({v.positive("robust_scale_m", c) for c in scales}, reverse=True)
         rounds = v.integer("robust_rounds", robust_rounds, minimum=1)
 
     anchor = np.zeros(n, dtype=bool)
@@ -718,20 +745,16 @@ def coarse_positions(
             starts.append(Xr)
             if sr < s:
                 X, s = Xr, sr
-    if robust_scale_m is not None:  # every start robustly; the lowest robust cost wins
-        measured, best = W, None
-        for Xs in starts:
-            fit = _robust_fit(D, measured, Xs, c, rounds, n_iter, tol)
-            if best is None or fit[3] < best[3]:
-                best = fit
-        X, W, s = best[:3]
-        X, moved = relocate_nodes(D, measured, X, c, fixed=anchor if n_anchor else None)
-        if moved.size:  # refine the repaired configuration the same way
-            fit = _robust_fit(D, measured, X, c, rounds, n_iter, tol)
-            if fit[3] < best[3]:
-                X, W, s = fit[:3]
-            else:
-                X = best[0]
+    if robust_scale_m is not None:  # per scale, every start robustly (lowest cost wins)
+        measured, chosen = W, None
+        for c in scales:
+            X_c, W_c, s_c = _robust_solution(
+                D, measured, starts, c, rounds, n_iter, tol, anchor if n_anchor else None
+            )
+            cost = _total_cauchy_cost(D, measured, X_c, scales[-1])  # all at the finest scale
+            if chosen is None or cost < chosen[3]:
+                chosen = (X_c, W_c, s_c, cost)
+        X, W, s = chosen[:3]
 
     if n_anchor:
         R, t = kabsch(X[anchor], A)
