@@ -47,9 +47,13 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     f, ser, meta = fast_s1["figures"], fast_s1["series"], fast_s1["meta"]
     K = meta["n_steps"]
     assert meta["scenarios"].keys() == {"s1_r18", "s1_rinf"}
-    assert meta["methods"] == ["pfbp", "pfbp_reg", "sirbp", "spbp", "edh"]
+    assert meta["methods"] == [
+        "pfbp", "pfbp_reg", "sirbp", "sirbp_reg", "spbp", "spbp_reg", "edh", "edh_reg"
+    ]  # fmt: skip
     assert meta["options"]["sirbp"]["n_particles"] == 10_000  # [experiment.fast] override
-    assert meta["options"]["pfbp_reg"]["regularize"] is True
+    assert meta["options"]["sirbp_reg"]["n_particles"] == 10_000
+    for m in meta["methods"]:  # "reg" is the registered default of every *_reg variant
+        assert meta["options"][m]["regularize"] is m.endswith("_reg")
     expected = []
     for s in meta["scenarios"]:
         expected.append(f"sirbp_over_pfbp.{s}.step_ratio")
@@ -60,7 +64,7 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
             assert f[f"pcrlb_cond.{s}.k{k}.p_m"] >= f[f"pcrlb.{s}.k{k}.p_m"] * (1 - 1e-9)
         for m in meta["methods"]:
             expected += [f"{m}.{s}.step_s", f"{m}.{s}.rmse_p_all_m"]
-            if m != "edh":
+            if not m.startswith("edh"):  # centralized: no time per agent
                 expected.append(f"{m}.{s}.agent_s")
             for k in meta["report_steps"]:
                 expected += [

@@ -18,6 +18,8 @@ every method of ``experiment.methods`` — any method of the ``"tracking"`` fami
     ``spbp``      sigma-point BP (:func:`~phyloc.localization.tracking.run_spbp`)
     ``edh``       centralized EDH particle-flow filter, PF-BP Appendix B
                   (:func:`~phyloc.localization.tracking.run_edh`)
+    ``sirbp_reg``, ``spbp_reg``, ``edh_reg``   the same with the regularization of eqs. (32),
+                  (33), as the paper runs every method (dashed in the figure)
 
 Method options are ``[localization.<method>]`` tables (the keys of the method's options
 dataclass, :class:`~phyloc.localization.tracking.PFBPOptions`,
@@ -119,7 +121,7 @@ from phyloc.parallel import run_tasks
 
 FAMILY = "tracking"
 #: The methods of PF-BP §VI, the default of ``experiment.methods``.
-DEFAULT_METHODS = ("pfbp", "pfbp_reg", "sirbp", "spbp", "edh")
+DEFAULT_METHODS = ("pfbp", "pfbp_reg", "sirbp", "sirbp_reg", "spbp", "spbp_reg", "edh", "edh_reg")
 MEASUREMENTS = ("gaussian", "sage")
 SAGE_SIGMA_RULES = ("residual", "zzb")
 _UNITS = {"p": "p_m", "v": "v_m_s", "a": "a_m_s2"}
@@ -650,7 +652,11 @@ def plot(results: dict, path) -> None:
         for r, b in enumerate(blocks):
             ax = axes[r, j]
             for i, m in enumerate(meta["methods"]):
-                ax.semilogy(k, ser[f"{m}.{tok}.rmse_{_UNITS[b]}"], color=f"C{i}", label=m)
+                reg = meta["options"].get(m, {}).get("regularize", False)  # "reg": dashed
+                ax.semilogy(
+                    k, ser[f"{m}.{tok}.rmse_{_UNITS[b]}"], "--" if reg else "-", color=f"C{i}",
+                    label=m,
+                )  # fmt: skip
             ax.semilogy(k, ser[f"pcrlb.{tok}.{_UNITS[b]}"], "k--", label="PCRLB")
             ax.semilogy(k, ser[f"pcrlb_cond.{tok}.{_UNITS[b]}"], "k:", label="PCRLB (cond.)")
             ax.set_ylabel(ylabel[b])

@@ -17,9 +17,12 @@ name          label        method (options)
 ``pfbp_reg``  PF-BP reg    PF-BP with the regularization of PF-BP eqs. (32), (33)
                            (:class:`PFBPOptions`, ``regularize = True``)
 ``sirbp``     SIR-BP       bootstrap-particle BP, PF-BP §V-B (:class:`SIRBPOptions`)
+``sirbp_reg`` SIR-BP reg   SIR-BP, resampled particles jittered by ``N(0, Σ_r)`` of eq. (32)
 ``spbp``      SP-BP        sigma-point BP (:class:`SPBPOptions`)
+``spbp_reg``  SP-BP reg    SP-BP with ``Σ_r`` added to every updated covariance (eq. (33))
 ``edh``       EDH          centralized EDH particle-flow filter, PF-BP Appendix B
                            (:class:`PFBPOptions`; ``agent_s`` is NaN: no distributed form)
+``edh_reg``   EDH reg      EDH with the regularization of eqs. (32), (33)
 ============  ===========  =====================================================================
 
 Modules: :mod:`~phyloc.localization.tracking.range_models` (state and measurement models, the
@@ -94,7 +97,23 @@ for _name, _run, _options, _defaults, _label, _description in (
         "PF-BP with the regularization kernel of PF-BP eqs. (32), (33)",
     ),
     ("sirbp", run_sirbp, SIRBPOptions, {}, "SIR-BP", "bootstrap-particle BP (PF-BP §V-B)"),
+    (
+        "sirbp_reg",
+        run_sirbp,
+        SIRBPOptions,
+        {"regularize": True},
+        "SIR-BP reg",
+        "SIR-BP with the regularization kernel of PF-BP eq. (32)",
+    ),
     ("spbp", run_spbp, SPBPOptions, {}, "SP-BP", "sigma-point BP (Meyer et al. 2014)"),
+    (
+        "spbp_reg",
+        run_spbp,
+        SPBPOptions,
+        {"regularize": True},
+        "SP-BP reg",
+        "SP-BP with Σ_r of PF-BP eq. (32) added to every updated covariance (eq. (33))",
+    ),
     (
         "edh",
         run_edh,
@@ -102,6 +121,14 @@ for _name, _run, _options, _defaults, _label, _description in (
         {},
         "EDH",
         "centralized exact Daum–Huang particle-flow filter (PF-BP Appendix B)",
+    ),
+    (
+        "edh_reg",
+        run_edh,
+        PFBPOptions,
+        {"regularize": True},
+        "EDH reg",
+        "EDH with the regularization kernel of PF-BP eqs. (32), (33)",
     ),
 ):
     register_method(
