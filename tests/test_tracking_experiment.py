@@ -48,10 +48,12 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     K = meta["n_steps"]
     assert meta["scenarios"].keys() == {"s1_r18", "s1_rinf"}
     assert meta["methods"] == [
-        "pfbp", "pfbp_reg", "sirbp", "sirbp_reg", "spbp", "spbp_reg", "edh", "edh_reg"
+        "pfbp", "pfbp_reg", "sirbp", "sirbp_reg", "sirbp_mil", "sirbp_mil_reg",
+        "spbp", "spbp_reg", "edh", "edh_reg",
     ]  # fmt: skip
     assert meta["options"]["sirbp"]["n_particles"] == 10_000  # [experiment.fast] override
     assert meta["options"]["sirbp_reg"]["n_particles"] == 10_000
+    assert meta["bases"]["sirbp_mil"] == meta["bases"]["sirbp_mil_reg"] == "sirbp"
     for m in meta["methods"]:  # "reg" is the registered default of every *_reg variant
         assert meta["options"][m]["regularize"] is m.endswith("_reg")
     expected = []
@@ -201,3 +203,40 @@ def test_residual_sigma_is_the_range_noise_scale():
     sigma = te._residual_sigma(net, (links, d + rng.normal(0, 0.5, d.size)), dim=2)
     assert 0.25 < sigma < 0.5
     assert te._residual_sigma(net, None, dim=2) is None
+
+
+def test_a_variant_runs_its_base_method_with_its_own_table():
+    """``[localization.sirbp_small] method = "sirbp"`` defines a method name: the run equals
+    the registered method with the same options at the same place of ``experiment.methods``
+    (the same random stream), next to the base method itself."""
+    variant = TINY.replace(
+        'methods = ["pfbp", "sirbp", "spbp", "edh"]', 'methods = ["pfbp", "sirbp_small"]'
+    ).replace(
+        "method_options = { sirbp = { n_particles = 500 } }",
+        '[localization.sirbp_small]\nmethod = "sirbp"\nn_particles = 300\nregularize = true\n',
+    )
+    plain = TINY.replace(
+        'methods = ["pfbp", "sirbp", "spbp", "edh"]', 'methods = ["pfbp", "sirbp"]'
+    ).replace(
+        "method_options = { sirbp = { n_particles = 500 } }",
+        "method_options = { sirbp = { n_particles = 300, regularize = true } }",
+    )
+    a = te.run(load_recipe(variant), progress=False)
+    b = te.run(load_recipe(plain), progress=False)
+    assert a["meta"]["bases"] == {"pfbp": "pfbp", "sirbp_small": "sirbp"}
+    assert a["meta"]["labels"]["sirbp_small"] == "sirbp_small"
+    assert a["meta"]["options"]["sirbp_small"]["n_particles"] == 300
+    fa = {n: x for n, x in a["figures"].items() if not te.is_timing(n)}
+    fb = {n.replace("sirbp.", "sirbp_small.", 1): x for n, x in b["figures"].items()}
+    fb = {n.replace("sirbp_over_pfbp", "x"): x for n, x in fb.items() if not te.is_timing(n)}
+    fa = {n.replace("sirbp_over_pfbp", "x"): x for n, x in fa.items()}
+    assert fa == fb
+    # a variant's table needs a registered base; a registered name cannot be redefined
+    for old, new, key in (
+        ('method = "sirbp"', 'method = "sirbpp"', "localization.sirbp_small.method"),
+        ("[localization.pfbp]\n", '[localization.pfbp]\nmethod = "sirbp"\n', "localization.pfbp"),
+        ('method = "sirbp"\n', "", "localization.sirbp_small"),  # no base: an unknown table
+    ):
+        with pytest.raises(ValidationError) as err:
+            te.run(load_recipe(variant.replace(old, new, 1)), progress=False)
+        assert err.value.field.startswith(key), err.value.field

@@ -147,7 +147,10 @@ class TrackingExperimentSpec:
     n_steps : int
         K (40).
     methods : tuple of str
-        Registered methods of the ``"tracking"`` family (default :data:`DEFAULT_METHODS`).
+        Registered methods of the ``"tracking"`` family (default :data:`DEFAULT_METHODS`), or
+        *variants*: names defined by a ``[localization.<name>]`` table whose ``method`` key
+        names the registered method they run with that table's options (e.g. ``sirbp_mil``,
+        SIR-BP with 10⁶ particles; checked against the recipe by :func:`method_options`).
     motion, dim, side_m, dt_s, accel_std, sigma_r
         State model, dimension, cube side [m], ΔT [s], σ_a [m/s²], range σ [m] (PF-BP §VI:
         CA, 3, 20, 0.1, 0.15, 0.1).
@@ -214,9 +217,8 @@ class TrackingExperimentSpec:
         known = METHODS.family(FAMILY)
         if not methods:
             raise ValidationError("experiment.methods", [], f"at least one of {', '.join(known)}")
-        for m in methods:
-            if m not in known:
-                raise ValidationError("experiment.methods", m, f"each one of {', '.join(known)}")
+        if len(set(methods)) != len(methods):
+            raise ValidationError("experiment.methods", list(methods), "each name once")
         object.__setattr__(self, "methods", methods)
         if self.motion not in STATE_MODELS:
             raise ValidationError("experiment.motion", self.motion, f"one of {STATE_MODELS}")
@@ -252,9 +254,9 @@ class TrackingExperimentSpec:
                 "experiment.method_options", self.method_options, "a table {method = {key = value}}"
             )
         for m in self.method_options:
-            if m not in known:
+            if m not in methods:
                 raise ValidationError(
-                    "experiment.method_options", m, f"keys from {', '.join(known)}"
+                    "experiment.method_options", m, f"keys from {', '.join(methods)}"
                 )
 
     @classmethod
@@ -267,20 +269,54 @@ class TrackingExperimentSpec:
         return RangeModel(self.motion, self.dim, self.dt_s, self.accel_std, self.sigma_r)
 
 
+def method_bases(localization: dict, exp: TrackingExperimentSpec) -> dict:
+    """The registered method each name of ``experiment.methods`` runs: itself, or for a
+    variant the ``method`` key of its ``[localization.<name>]`` table. Unknown names and
+    tables are errors naming ``experiment.methods`` / ``localization.<name>``."""
+    known = METHODS.family(FAMILY)
+    variants = {}
+    for name, table in localization.items():
+        if isinstance(table, dict) and "method" in table:
+            base = table["method"]
+            if name in known:
+                raise ValidationError(
+                    f"localization.{name}.method", base, "no 'method' key: a registered name"
+                )
+            if base not in known:
+                raise ValidationError(
+                    f"localization.{name}.method", base, f"one of {', '.join(known)}"
+                )
+            variants[name] = base
+    check_keys(localization, [*known, *variants], "localization")
+    bases = {}
+    for m in exp.methods:
+        if m not in known and m not in variants:
+            raise ValidationError(
+                "experiment.methods",
+                m,
+                f"each one of {', '.join(known)}, or a variant: a [localization.{m}] table "
+                'with method = "<one of those>"',
+            )
+        bases[m] = variants.get(m, m)
+    return bases
+
+
 def method_options(localization: dict, exp: TrackingExperimentSpec) -> dict:
     """Options object of every method: ``[localization.<m>]`` updated by
-    ``experiment.method_options``; unknown keys are errors naming ``localization.<m>.<key>``."""
+    ``experiment.method_options``; unknown keys are errors naming ``localization.<m>.<key>``
+    (a variant's table without its ``method`` key, see :func:`method_bases`)."""
     localization = dict(localization)
-    check_keys(localization, list(METHODS.family(FAMILY)), "localization")
+    bases = method_bases(localization, exp)
     out = {}
     for m in exp.methods:
         raw = localization.get(m, {})
         if not isinstance(raw, dict):
             raise ValidationError(f"localization.{m}", raw, "a table of method options")
+        raw = {k: x for k, x in raw.items() if k != "method"}
         over = exp.method_options.get(m, {})
         if not isinstance(over, dict):
             raise ValidationError(f"experiment.method_options.{m}", over, "a table of options")
-        method = METHODS[m]
+        method = METHODS[bases[m]]
         try:
             out[m] = method.make_options(raw, section=f"localization.{m}")
             out[m] = method.make_options({**raw, **over}, section=f"experiment.method_options.{m}")
@@ -401,7 +437,7 @@ def _residual_sigma(net, first, *, dim):
 
 def _task(payload, seed_seq):
     """One Monte Carlo run of one scenario: measurements, prior, every method."""
-    exp, scen, options, extra = payload
+    exp, scen, options, bases, extra = payload
     streams = seed_seq.spawn(2 + len(exp.methods))
     rng = np.random.default_rng(streams[0])
     if exp.measurements == "gaussian":
@@ -420,7 +456,7 @@ def _task(payload, seed_seq):
     d = exp.dim
     out = {"scenario": sc, "prior_cov": prior.cov, "sage": info}
     for s, m in zip(streams[2:], exp.methods, strict=True):
-        res = METHODS[m].run(meas, prior, np.random.default_rng(s), options[m])
+        res = METHODS[bases[m]].run(meas, prior, np.random.default_rng(s), options[m])
         for b, name in enumerate("pva"[: sc.model.order]):
             e = res.estimates[..., b * d : (b + 1) * d] - sc.states[..., b * d : (b + 1) * d]
             out[f"{m}|e_{name}"] = np.linalg.norm(e, axis=-1)  # [K, n_agents]
@@ -436,6 +472,7 @@ def prepare(recipe: Recipe, *, fast: bool = False):
     exp = TrackingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
     exp.model()  # validates the model
     options = method_options(recipe.section("localization"), exp)
+    bases = method_bases(recipe.section("localization"), exp)
     extra = None
     if exp.measurements == "sage":
         from phyloc.channels import ChannelSpec
@@ -452,16 +489,16 @@ def prepare(recipe: Recipe, *, fast: bool = False):
             raise ValidationError(
                 f"experiment.scenarios.{tok}.{exc.field}", exc.value, exc.allowed
             ) from None
-    return exp, options, extra
+    return exp, options, bases, extra
 
 
 def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
     """Run a ``kind = "tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    exp, options, extra = prepare(recipe, fast=fast)
+    exp, options, bases, extra = prepare(recipe, fast=fast)
     payloads, keys = [], []
     for tok, scen in exp.scenarios.items():
         for r in range(exp.runs):
-            payloads.append((exp, scen, options, extra))
+            payloads.append((exp, scen, options, bases, extra))
             keys.append((tok, r))
     results = run_tasks(
         _task,
@@ -488,7 +525,8 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         "outage_thresholds_m": list(exp.outage_thresholds_m),
         "measurements": exp.measurements,
         "options": {m: dataclasses.asdict(o) for m, o in options.items()},
-        "labels": {m: METHODS[m].label for m in exp.methods},
+        "labels": {m: METHODS[m].label if m == b else m for m, b in bases.items()},
+        "bases": dict(bases),
         "timing": "median wall time over all steps of all runs (includes worker contention)",
     }
     if exp.measurements == "sage":
