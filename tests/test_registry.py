@@ -23,13 +23,17 @@ def _recipe_methods():
         if family is None:
             continue
         exp = raw.get("experiment", {})
+        tables = raw.get("localization", {})
         for key in ("methods", "sample_methods"):
             for name in exp.get(key, []):
-                yield path.name, name, family
+                table = tables.get(name, {})
+                base = table.get("method", name) if isinstance(table, dict) else name
+                yield path.name, base, family
 
 
 @pytest.mark.parametrize(("recipe", "name", "family"), list(_recipe_methods()))
 def test_every_recipe_method_is_registered_in_its_family(recipe, name, family):
+    """Every method a recipe names (a variant: the ``method`` its table names) is registered."""
     assert name in METHODS, f"{recipe}: {name}"
     assert METHODS[name].family == family
 

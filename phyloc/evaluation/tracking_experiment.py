@@ -718,7 +718,7 @@ def plot(results: dict, path) -> None:
         ax.set_ylabel("outage probability")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=6, ncol=2)
-    fig.suptitle(
-        f"Cooperative tracking vs PCRLB — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
-    )
+    fast = " (fast)" if meta.get("fast") else ""
+    sep = "\n" if len(toks) == 1 else " — "  # one column: the title on two lines
+    fig.suptitle(f"Cooperative tracking vs PCRLB{sep}{meta['recipe']}{fast}")
     fig.savefig(path, dpi=100)
