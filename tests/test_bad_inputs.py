@@ -8,6 +8,7 @@ experiment docs); the properties over random mutations are in ``test_fuzz_recipe
 """
 
 import pytest
+from test_cli import TINY as TINY_RANGING
 
 from phyloc.cli import main
 
@@ -51,27 +52,7 @@ realizations = 2
 shard_size = 1
 """
 
-RANGING = """
-kind = "ranging"
-name = "r"
-seed = 1
-[system]
-n_subcarriers = 257
-subcarrier_spacing_hz = 146.5e3
-[network]
-region_m = [60.0, 60.0]
-[ranging]
-methods = ["corr", "sage"]
-[ranging.sage]
-n_paths = 3
-n_iter = 3
-[experiment]
-scenarios = { c2 = "winner2_c2" }
-agents = [4]
-realizations = 1
-awgn_snr_db = [20, 30]
-awgn_links = 60
-"""
+RANGING = TINY_RANGING  # test_cli's ranging recipe
 
 
 def _sub(base, old, new):
