@@ -352,3 +352,74 @@ def test_scenario_validation():
     with pytest.raises(ValidationError, match="dim"):
         simulate_scenario(net, RangeModel(dim=2), rng)
     assert isinstance(sc, RangeScenario)
+
+
+def _two_agent_step(exchange, reflect):
+    """One PF-BP step (one message-passing iteration) of agent 0 with neighbour 1, whose
+    particles are reflected about their mean when ``reflect`` (same mean, other particles)."""
+    from phyloc.localization.tracking.pfbp import PFBPTracker
+
+    model = RangeModel("constant_velocity", 2, dt_s=0.1, accel_std=0.1, sigma_r=0.1)
+    anchors = np.array([[0.0, 0.0], [20.0, 0.0], [0.0, 20.0]])
+    truth = np.array([[5.0, 6.0], [12.0, 9.0]])
+    z = np.full((2, 5), np.nan)
+    for i in range(2):
+        z[i, 2:] = np.linalg.norm(anchors - truth[i], axis=1)
+        z[i, 1 - i] = np.linalg.norm(truth[0] - truth[1])
+    z[1, 2:] = np.nan  # agent 1 sees only agent 0: its belief stays wide
+    prior = GaussianPrior(
+        np.hstack([truth + 1.0, np.zeros((2, 2))]),
+        np.tile(np.diag([4.0, 4.0, 0.1, 0.1]), (2, 1, 1)),
+    )
+    opts = PFBPOptions(n_particles=300, n_lambda=10, n_iterations=1, exchange=exchange)
+    t = PFBPTracker(model, prior, np.random.default_rng(2), opts)
+    if reflect:
+        p = t.particles[1]
+        t.particles[1] = 2.0 * p.mean(axis=0) - p
+    t.rng = np.random.default_rng(9)
+    t.step(z, anchors)
+    return t.particles[0], t.cov[0]
+
+
+def test_gaussian_exchange_reads_only_the_neighbours_mean_and_covariance():
+    """``exchange = "gaussian"`` (PF-BP §VI: a belief is sent as mean and covariance): another
+    particle set of the neighbour with the same mean and covariance leaves the agent's update
+    unchanged; with ``"particles"`` (the default) the particles themselves enter."""
+    a, ca = _two_agent_step("gaussian", reflect=False)
+    b, cb = _two_agent_step("gaussian", reflect=True)
+    np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(cb, ca, rtol=1e-9, atol=1e-12)
+    c, _ = _two_agent_step("particles", reflect=False)
+    d, _ = _two_agent_step("particles", reflect=True)
+    assert np.abs(c - d).max() > 1e-3
+    with pytest.raises(ValidationError, match="exchange"):
+        PFBPOptions(exchange="beliefs")
+
+
+@pytest.mark.parametrize("M", [50, 120])
+def test_floats_per_link_iteration_count_what_each_method_sends(M):
+    """Counted by hand for the 9-D CA state (PF-BP §VI): a Gaussian belief is 9 + 45 floats
+    (mean, symmetric covariance) whatever M; PF-BP with particles sends M·9 + 45; SIR-BP's
+    neighbours read M 3-D positions; the centralized EDH exchanges no beliefs."""
+    from phyloc.localization import METHODS
+
+    model = RangeModel("constant_acceleration", 3)
+    z = np.full((1, 2, 3), np.nan)
+    meas = RangeMeasurements(model, np.zeros((1, 3)), z)
+    prior = GaussianPrior(np.zeros((2, 9)), np.tile(np.eye(9), (2, 1, 1)))
+    expected = {
+        ("pfbp", "particles"): M * 9 + 45,
+        ("pfbp", "gaussian"): 54,
+        ("sirbp", None): M * 3,
+        ("spbp", None): 54,
+    }
+    for (name, exchange), want in expected.items():
+        m = METHODS[name]
+        raw = {} if name == "spbp" else {"n_particles": M}
+        if exchange:
+            raw["exchange"] = exchange
+        res = m.run(meas, prior, np.random.default_rng(0), m.make_options(raw))
+        assert res.diagnostics["floats_per_link_iteration"] == want, (name, exchange)
+    edh = METHODS["edh"]
+    res = edh.run(meas, prior, np.random.default_rng(0), edh.make_options({"n_particles": M}))
+    assert np.isnan(res.diagnostics["floats_per_link_iteration"])

@@ -66,8 +66,8 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
             assert f[f"pcrlb_cond.{s}.k{k}.p_m"] >= f[f"pcrlb.{s}.k{k}.p_m"] * (1 - 1e-9)
         for m in meta["methods"]:
             expected += [f"{m}.{s}.step_s", f"{m}.{s}.rmse_p_all_m"]
-            if not m.startswith("edh"):  # centralized: no time per agent
-                expected.append(f"{m}.{s}.agent_s")
+            if not m.startswith("edh"):  # centralized: no time per agent, no messages
+                expected += [f"{m}.{s}.agent_s", f"{m}.{s}.floats_per_link_iteration"]
             for k in meta["report_steps"]:
                 expected += [
                     f"{m}.{s}.k{k}.{q}"
@@ -100,6 +100,10 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     missing = [n for n in expected if n not in f]
     assert not missing, missing
     assert all(math.isfinite(f[n]) for n in expected)
+    for s in meta["scenarios"]:  # what one agent sends a neighbour per iteration, 9-D states
+        M = meta["options"]["sirbp"]["n_particles"]
+        assert f[f"sirbp.{s}.floats_per_link_iteration"] == 3 * M
+        assert f[f"spbp.{s}.floats_per_link_iteration"] == 9 + 45
     assert all(0.0 <= f[n] <= 1.0 for n in f if ".outage_" in n)
     te.plot(fast_s1, tmp_path / "t.png")
     assert (tmp_path / "t.png").stat().st_size > 10_000

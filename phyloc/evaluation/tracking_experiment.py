@@ -74,6 +74,10 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
     ``<m>.<s>.agent_s``              ... per agent, distributed processing [s] (not for methods
                                      without a distributed form, whose ``agent_s`` is NaN:
                                      ``edh``)
+    ``<m>.<s>.floats_per_link_iteration``   floats one agent sends one neighbour per
+                                     message-passing iteration (its belief: particles, or mean
+                                     and covariance; PF-BP §VI), from the method's
+                                     ``diagnostics`` (not for ``edh``, which exchanges none)
     ``sirbp_over_pfbp.<s>.step_ratio``   ``sirbp.<s>.step_s / pfbp.<s>.step_s``
     ``sage.<s>.range_rmse_m``, ``sage.<s>.valid_fraction``, ``sage.<s>.sigma_m``   (``"sage"``
                                      only) SAGE range RMSE over valid links, fraction of valid
@@ -462,6 +466,7 @@ def _task(payload, seed_seq):
             out[f"{m}|e_{name}"] = np.linalg.norm(e, axis=-1)  # [K, n_agents]
         out[f"{m}|step_s"] = res.timing.step_s
         out[f"{m}|agent_s"] = res.timing.agent_s
+        out[f"{m}|floats"] = float(res.diagnostics.get("floats_per_link_iteration", np.nan))
     return out
 
 
@@ -589,6 +594,9 @@ def _aggregate(keys, results, exp):
             agent_s = np.concatenate([p[f"{m}|agent_s"] for p in parts])
             if not np.all(np.isnan(agent_s)):  # NaN: no distributed form (edh)
                 figures[f"{base}.agent_s"] = float(np.median(agent_s))
+            floats = parts[0][f"{m}|floats"]
+            if not np.isnan(floats):  # NaN: exchanges no beliefs (edh)
+                figures[f"{base}.floats_per_link_iteration"] = floats
         if "sirbp" in exp.methods and "pfbp" in exp.methods:
             figures[f"sirbp_over_pfbp.{tok}.step_ratio"] = (
                 figures[f"sirbp.{tok}.step_s"] / figures[f"pfbp.{tok}.step_s"]

@@ -34,6 +34,7 @@ from phyloc.localization.tracking.range_models import (
     check_inputs,
     check_run_args,
     flow_links,
+    message_floats,
     sample_gaussian,
 )
 
@@ -140,5 +141,6 @@ def run_edh(
         timing,
         particles=np.ascontiguousarray(X.reshape(M, n_ag, nd).transpose(1, 0, 2)),
         log_weights=np.full((n_ag, M), -np.log(M)),
+        diagnostics={"floats_per_link_iteration": message_floats("none", nd)},  # centralized
         label="edh",
     )

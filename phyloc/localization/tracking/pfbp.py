@@ -56,8 +56,11 @@ from phyloc.localization.tracking.range_models import (
     check_prior,
     check_run_args,
     flow_links,
+    message_floats,
     sample_gaussian,
 )
+
+EXCHANGES = ("particles", "gaussian")
 
 
 @dataclass(frozen=True)
@@ -80,6 +83,11 @@ class PFBPOptions:
         Regularization kernel of PF-BP eqs. (32), (33) (off; on for ``pfbp_reg``).
     reg_std_vel, reg_std_acc : float
         σ_r,vel [m/s], σ_r,acc [m/s²] of PF-BP eq. (32) (0.15).
+    exchange : {"particles", "gaussian"}
+        What a PF-BP agent takes from a neighbour's belief at each message-passing iteration:
+        its particles and covariance (``"particles"``, default), or — as PF-BP §VI describes
+        the communication — only its mean and covariance, from which the agent draws the
+        neighbour's particles locally (``"gaussian"``). EDH (centralized) ignores it.
     """
 
     n_particles: int = 200
@@ -90,6 +98,7 @@ class PFBPOptions:
     regularize: bool = False
     reg_std_vel: float = 0.15
     reg_std_acc: float = 0.15
+    exchange: str = "particles"
 
     def __post_init__(self):
         for name, lo in (("n_particles", 2), ("n_lambda", 1), ("n_iterations", 1)):
@@ -100,6 +109,8 @@ class PFBPOptions:
         object.__setattr__(self, "lambda_ratio", ratio)
         if self.factors not in FACTORS:
             raise ValidationError("factors", self.factors, f"must be one of {FACTORS}")
+        if self.exchange not in EXCHANGES:
+            raise ValidationError("exchange", self.exchange, f"must be one of {EXCHANGES}")
         for name in ("reg_std_vel", "reg_std_acc"):
             object.__setattr__(self, name, v.positive(name, getattr(self, name), allow_zero=True))
 
@@ -134,7 +145,10 @@ def run_pfbp(
         ``estimates [K, n_agents, N_D]`` (sample means, PF-BP eq. (20)), ``covariances``
         (UKF, PF-BP eq. (30)), the final ``particles [n_agents, M, N_D]`` with uniform
         ``log_weights``; ``timing.step_s`` per time step, ``agent_s = step_s / n_agents``,
-        ``agent_iterations = K · U · n_agents``; no diagnostics.
+        ``agent_iterations = K · U · n_agents``; ``diagnostics["floats_per_link_iteration"]``,
+        what one agent sends a neighbour per message-passing iteration
+        (:func:`~phyloc.localization.tracking.range_models.message_floats`: particles and
+        covariance, or mean and covariance with ``exchange = "gaussian"``).
 
     Examples
     --------
@@ -170,8 +184,16 @@ def run_pfbp(
         timing,
         particles=tracker.particles,
         log_weights=np.full((n_ag, M), -np.log(M)),
+        diagnostics={"floats_per_link_iteration": _floats(opt, nd)},
         label="pfbp",
     )
+
+
+def _floats(opt: PFBPOptions, nd: int) -> float:
+    """What a PF-BP agent sends a neighbour per iteration (PF-BP §VI; ``opt.exchange``)."""
+    if opt.exchange == "gaussian":
+        return message_floats("gaussian", nd)
+    return message_floats("particles+cov", nd, opt.n_particles)
 
 
 class PFBPTracker:
@@ -227,10 +249,12 @@ class PFBPTracker:
         for _u in range(opt.n_iterations):  # lines 10–18, all agents in parallel
             new_chi = np.empty_like(chi)
             new_P = np.empty_like(P_bel)
+            # what each agent broadcasts: its belief's particles, or only its mean (+ P_bel)
+            means = chi.mean(axis=1) if opt.exchange == "gaussian" else None
             for i in range(chi.shape[0]):
                 new_chi[i], new_P[i] = _agent_update(
                     i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt,
-                    self._lambdas, self._steps, var, Sr, rng,
+                    self._lambdas, self._steps, var, Sr, rng, means,
                 )  # fmt: skip
             chi, P_bel = new_chi, new_P
         self.particles, self.cov = chi, P_bel
@@ -238,9 +262,11 @@ class PFBPTracker:
 
 
 def _agent_update(
-    i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt, lambdas, steps, var, Sr, rng
+    i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt, lambdas, steps, var, Sr, rng, means
 ):
-    """One belief update of agent ``i`` (PF-BP Algorithm 1, lines 12–16)."""
+    """One belief update of agent ``i`` (PF-BP Algorithm 1, lines 12–16). With ``means``
+    (``exchange = "gaussian"``) the neighbours' particles are drawn here from
+    ``N(means[j], P_bel[j])``: ``chi[j]`` itself is not read."""
     dim, nd, n_ag = model.dim, model.state_dim, X0.shape[0]
     rx, tx, zz, partners = agent_measurements(z_k, i, opt.factors)
     if zz.size == 0:
@@ -250,7 +276,11 @@ def _agent_update(
         local[i] = 0
         local[partners] = np.arange(1, partners.size + 1)
         off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
-        beta = np.concatenate([X0[i]] + [chi[j] for j in partners], axis=1)  # PF-BP eq. (21)
+        if means is None:
+            nb = [chi[j] for j in partners]
+        else:  # PF-BP §VI: sample the neighbours' Gaussian beliefs locally
+            nb = list(sample_gaussian(means[partners], P_bel[partners], X0.shape[1], rng))
+        beta = np.concatenate([X0[i], *nb], axis=1)  # PF-BP eq. (21)
         P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # PF-BP eq. (28)
         beta_bar = beta.mean(axis=0)
         r_var = np.full(zz.size, var)

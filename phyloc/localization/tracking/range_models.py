@@ -428,6 +428,29 @@ def flow_links(rx, tx, z, local_index, n_agents, anchors, dim, state_dim):
     )
 
 
+def message_floats(kind: str, state_dim: int, n_particles: int = 0, dim: int = 0) -> float:
+    """Floats one agent sends one neighbour per message-passing iteration (its belief).
+
+    ``"gaussian"``: mean and covariance, ``N_D + N_D(N_D + 1)/2`` (a symmetric matrix);
+    ``"particles+cov"``: ``M·N_D`` particle states and the covariance; ``"positions"``: ``M·dim``
+    particle positions (all a neighbour's range factor reads, SIR-BP); ``"none"``: NaN (a
+    centralized filter exchanges no beliefs).
+
+    >>> message_floats("gaussian", 9), message_floats("positions", 9, 100_000, 3)
+    (54.0, 300000.0)
+    """
+    cov = state_dim * (state_dim + 1) / 2
+    if kind == "gaussian":
+        return state_dim + cov
+    if kind == "particles+cov":
+        return n_particles * state_dim + cov
+    if kind == "positions":
+        return float(n_particles * dim)
+    if kind == "none":
+        return float("nan")
+    raise ValidationError("kind", kind, "gaussian, particles+cov, positions or none")
+
+
 def sample_gaussian(mean: np.ndarray, cov: np.ndarray, n: int, rng: np.random.Generator):
     """``n`` draws per agent from ``N(mean_i, cov_i)``: ``[n_agents, n, N_D]``.
 

@@ -41,6 +41,7 @@ from phyloc.localization.tracking.range_models import (
     agent_measurements,
     check_inputs,
     check_run_args,
+    message_floats,
     sample_gaussian,
 )
 
@@ -181,5 +182,6 @@ def run_sirbp(
         timing,
         particles=X,
         log_weights=np.full((n_ag, M), -np.log(M)),
+        diagnostics={"floats_per_link_iteration": message_floats("positions", nd, M, dim)},
         label="sirbp",
     )

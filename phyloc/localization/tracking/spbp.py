@@ -60,6 +60,7 @@ from phyloc.localization.tracking.range_models import (
     check_prior,
     check_run_args,
     flow_links,
+    message_floats,
 )
 
 
@@ -173,7 +174,9 @@ def run_spbp(
     Result
         ``estimates [K, n_agents, N_D]``, ``covariances [K, n_agents, N_D, N_D]`` (Gaussian
         beliefs), no particles; ``timing.agent_s = step_s / n_agents``,
-        ``agent_iterations = K · U · n_agents``; ``label="spbp"``.
+        ``agent_iterations = K · U · n_agents``; ``label="spbp"``;
+        ``diagnostics["floats_per_link_iteration"]``: a Gaussian belief, mean and covariance
+        (:func:`~phyloc.localization.tracking.range_models.message_floats`).
 
     Examples
     --------
@@ -201,7 +204,10 @@ def run_spbp(
     timing = Timing(
         time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
     )
-    return Result(out_mean, out_cov, timing, label="spbp")
+    floats = message_floats("gaussian", tracker.model.state_dim)
+    return Result(
+        out_mean, out_cov, timing, diagnostics={"floats_per_link_iteration": floats}, label="spbp"
+    )
 
 
 class SPBPTracker:
