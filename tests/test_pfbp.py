@@ -396,6 +396,30 @@ def test_gaussian_exchange_reads_only_the_neighbours_mean_and_covariance():
         PFBPOptions(exchange="beliefs")
 
 
+def test_gaussian_exchange_with_anchor_links_only():
+    """An agent that ranges only to anchors has no neighbour to sample: the same update as
+    with particles exchanged (no agent-agent link, nothing read from a neighbour)."""
+    from phyloc.localization import METHODS
+
+    model = RangeModel("constant_velocity", 2, dt_s=0.1, accel_std=0.1, sigma_r=0.1)
+    anchors = np.array([[0.0, 0.0], [20.0, 0.0], [0.0, 20.0]])
+    truth = np.array([[5.0, 6.0], [12.0, 9.0]])
+    z = np.full((3, 2, 5), np.nan)
+    z[:, :, 2:] = np.linalg.norm(truth[:, None] - anchors[None], axis=2)
+    meas = RangeMeasurements(model, anchors, z)
+    prior = GaussianPrior(
+        np.hstack([truth + 1.0, np.zeros((2, 2))]),
+        np.tile(np.diag([4.0, 4.0, 0.1, 0.1]), (2, 1, 1)),
+    )
+    m = METHODS["pfbp"]
+    out = [
+        m.run(meas, prior, np.random.default_rng(4), m.make_options({"exchange": e}))
+        for e in ("particles", "gaussian")
+    ]
+    np.testing.assert_array_equal(out[0].estimates, out[1].estimates)
+    assert np.all(np.isfinite(out[1].covariances))
+
+
 @pytest.mark.parametrize("M", [50, 120])
 def test_floats_per_link_iteration_count_what_each_method_sends(M):
     """Counted by hand for the 9-D CA state (PF-BP §VI): a Gaussian belief is 9 + 45 floats

@@ -276,7 +276,7 @@ def _agent_update(
         local[i] = 0
         local[partners] = np.arange(1, partners.size + 1)
         off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
-        if means is None:
+        if means is None or partners.size == 0:
             nb = [chi[j] for j in partners]
         else:  # PF-BP §VI: sample the neighbours' Gaussian beliefs locally
             nb = list(sample_gaussian(means[partners], P_bel[partners], X0.shape[1], rng))
