@@ -100,6 +100,12 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     missing = [n for n in expected if n not in f]
     assert not missing, missing
     assert all(math.isfinite(f[n]) for n in expected)
+    for s, scen in meta["scenarios"].items():  # PF-BP Fig. 3: anchors within r_max, by hand
+        pos, anchors = ser[f"{s}.example_positions_m"], ser[f"{s}.anchors_m"]
+        d = np.linalg.norm(pos[:, :, None, :] - anchors[None, None], axis=-1)
+        count = (d <= scen["comm_range_m"]).sum(axis=2)
+        np.testing.assert_array_equal(ser[f"{s}.example_anchor_links"], count)
+        assert pos.shape == (K, 5, 3) and 0 < count.min() and count.max() <= 9
     for s in meta["scenarios"]:  # what one agent sends a neighbour per iteration, 9-D states
         M = meta["options"]["sirbp"]["n_particles"]
         assert f[f"sirbp.{s}.floats_per_link_iteration"] == 3 * M

@@ -550,6 +550,12 @@ def _aggregate(keys, results, exp):
     for tok in exp.scenarios:
         parts = [res for (t, _), res in zip(keys, results, strict=True) if t == tok]
         scs, P0 = [p["scenario"] for p in parts], parts[0]["prior_cov"]
+        first = scs[0]  # PF-BP Fig. 3: one realization, coloured by its anchor connections
+        series[f"{tok}.example_positions_m"] = first.positions()
+        series[f"{tok}.example_anchor_links"] = np.isfinite(first.z[:, :, first.n_agents :]).sum(
+            axis=2
+        )
+        series[f"{tok}.anchors_m"] = first.anchors
         bound = pcrlb(scs, P0).bounds
         cond = pcrlb(scs, P0, average="bound").bounds
         for b in blocks:
@@ -679,6 +685,23 @@ def summary_lines(results: dict):
     return out
 
 
+def _plot_example(fig, ax, ser, tok) -> None:
+    """PF-BP Fig. 3: the first run's true trajectories (x–y), each point coloured by the number
+    of anchors the agent ranges to at that step; anchors black, start points red."""
+    pos = np.asarray(ser[f"{tok}.example_positions_m"])
+    links = np.asarray(ser[f"{tok}.example_anchor_links"])
+    anchors = np.asarray(ser[f"{tok}.anchors_m"])
+    sc = ax.scatter(pos[..., 0].ravel(), pos[..., 1].ravel(), c=links.ravel(), s=4, cmap="viridis")
+    ax.plot(pos[0, :, 0], pos[0, :, 1], "rd", ms=4, label="start")
+    ax.plot(anchors[:, 0], anchors[:, 1], "ks", ms=5, label="anchors")
+    fig.colorbar(sc, ax=ax, label="anchor connections")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{tok}: run 1, true trajectories", fontsize=9)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.legend(fontsize=6)
+
+
 def plot(results: dict, path) -> None:
     """RMSE of p, v, a versus k with the PCRLB (Fig. 4, 7) and outage curves (Fig. 6), per
     scenario (columns), from results only."""
@@ -688,7 +711,7 @@ def plot(results: dict, path) -> None:
     ser, meta = results["series"], results["meta"]
     toks = list(meta["scenarios"])
     blocks = meta["blocks"]
-    n_rows = len(blocks) + 1
+    n_rows = len(blocks) + 2
     fig = Figure(figsize=(4.8 * len(toks), 3.0 * n_rows), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(n_rows, len(toks), squeeze=False)
@@ -711,7 +734,7 @@ def plot(results: dict, path) -> None:
             if r == 0:
                 ax.set_title(f"{tok} (r_max = {meta['scenarios'][tok]['comm_range_m']:g} m)")
                 ax.legend(fontsize=7)
-        ax = axes[-1, j]
+        ax = axes[-2, j]
         styles = ("-", "--", ":", "-.")
         for i, m in enumerate(meta["methods"]):
             for ko, ls in zip(meta["outage_steps"], styles, strict=False):
@@ -726,6 +749,7 @@ def plot(results: dict, path) -> None:
         ax.set_ylabel("outage probability")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=6, ncol=2)
+        _plot_example(fig, axes[-1, j], ser, tok)
     fast = " (fast)" if meta.get("fast") else ""
     sep = "\n" if len(toks) == 1 else " — "  # one column: the title on two lines
     fig.suptitle(f"Cooperative tracking vs PCRLB{sep}{meta['recipe']}{fast}")
