@@ -110,6 +110,7 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
         M = meta["options"]["sirbp"]["n_particles"]
         assert f[f"sirbp.{s}.floats_per_link_iteration"] == 3 * M
         assert f[f"spbp.{s}.floats_per_link_iteration"] == 9 + 45
+        assert f[f"pfbp.{s}.floats_per_link_iteration"] == 9 + 45  # exchange = "gaussian"
     assert all(0.0 <= f[n] <= 1.0 for n in f if ".outage_" in n)
     te.plot(fast_s1, tmp_path / "t.png")
     assert (tmp_path / "t.png").stat().st_size > 10_000
