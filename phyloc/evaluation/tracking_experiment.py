@@ -18,8 +18,8 @@ every method of ``experiment.methods`` — any method of the ``"tracking"`` fami
     ``spbp``      sigma-point BP (:func:`~phyloc.localization.tracking.run_spbp`)
     ``edh``       centralized EDH particle-flow filter, PF-BP Appendix B
                   (:func:`~phyloc.localization.tracking.run_edh`)
-    ``sirbp_reg``, ``spbp_reg``, ``edh_reg``   the same with the regularization of eqs. (32),
-                  (33), as the paper runs every method (dashed in the figure)
+    ``sirbp_reg``, ``spbp_reg``, ``edh_reg``   the same with the regularization of PF-BP
+                  eqs. (32), (33), as the paper runs every method (dashed in the figure)
 
 Method options are ``[localization.<method>]`` tables (the keys of the method's options
 dataclass, :class:`~phyloc.localization.tracking.PFBPOptions`,

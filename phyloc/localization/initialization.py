@@ -459,6 +459,10 @@ def _robust_fit(D, measured, X, c, rounds, n_iter, tol):
     return X, W, s, _total_cauchy_cost(D, measured, X, c)
 
 
+#: Cost difference below which two robust fits are the same fit (a 1 mm residual at 1 m).
+_COST_TIE = 1e-6
+
+
 def _total_cauchy_cost(D, measured, X, c) -> float:
     """``Σ_{i<j} w_ij log(1 + (r_ij/c)²)`` over the measured pairs at configuration ``X``."""
     r = D - _pairwise(X)
@@ -752,7 +756,10 @@ def coarse_positions(
                 D, measured, starts, c, rounds, n_iter, tol, anchor if n_anchor else None
             )
             cost = _total_cauchy_cost(D, measured, X_c, scales[-1])  # all at the finest scale
-            if chosen is None or cost < chosen[3]:
+            # a smaller scale wins only by more than a 1 mm residual at the finest scale: fits
+            # that tie (a flexible network fits exactly in many ways) keep the larger scale's,
+            # so rounding (e.g. complex64 storage) cannot flip the choice
+            if chosen is None or cost < chosen[3] - _COST_TIE * (1.0 + chosen[3]):
                 chosen = (X_c, W_c, s_c, cost)
         X, W, s = chosen[:3]
 
