@@ -10,20 +10,20 @@ holds the MMSE estimates of the full states (position, velocity, acceleration bl
 
 Registered in :data:`phyloc.localization.METHODS` (family ``"tracking"``):
 
-============  ===========  =====================================================================
-name          label        method (options)
-============  ===========  =====================================================================
-``pfbp``      PF-BP        particle-flow BP, PF-BP Algorithm 1 (:class:`PFBPOptions`)
-``pfbp_reg``  PF-BP reg    PF-BP with the regularization of PF-BP eqs. (32), (33)
-                           (:class:`PFBPOptions`, ``regularize = True``)
-``sirbp``     SIR-BP       bootstrap-particle BP, PF-BP §V-B (:class:`SIRBPOptions`)
-``sirbp_reg`` SIR-BP reg   SIR-BP, particles jittered by ``N(0, Σ_r)``, PF-BP eq. (32)
-``spbp``      SP-BP        sigma-point BP (:class:`SPBPOptions`)
-``spbp_reg``  SP-BP reg    SP-BP, ``Σ_r`` added to each covariance, PF-BP eq. (33)
-``edh``       EDH          centralized EDH particle-flow filter, PF-BP Appendix B
-                           (:class:`PFBPOptions`; ``agent_s`` is NaN: no distributed form)
-``edh_reg``   EDH reg      EDH with the regularization of PF-BP eqs. (32), (33)
-============  ===========  =====================================================================
+===============  ===========  ==================================================================
+name             label        method (options)
+===============  ===========  ==================================================================
+``pfbp``         PF-BP        particle-flow BP, PF-BP Algorithm 1 (:class:`PFBPOptions`)
+``pfbp_reg``     PF-BP reg    PF-BP with the regularization of PF-BP eqs. (32), (33)
+                              (:class:`PFBPOptions`, ``regularize = True``)
+``sirbp``        SIR-BP       bootstrap-particle BP, PF-BP §V-B (:class:`SIRBPOptions`)
+``sirbp_reg``    SIR-BP reg   SIR-BP, particles jittered by ``N(0, Σ_r)``, PF-BP eq. (32)
+``spbp``         SP-BP        sigma-point BP (:class:`SPBPOptions`)
+``spbp_reg``     SP-BP reg    SP-BP, ``Σ_r`` added to each covariance, PF-BP eq. (33)
+``edh``          EDH          centralized EDH particle-flow filter, PF-BP Appendix B
+                              (:class:`PFBPOptions`; ``agent_s`` is NaN: no distributed form)
+``edh_reg``      EDH reg      EDH with the regularization of PF-BP eqs. (32), (33)
+===============  ===========  ==================================================================
 
 Modules: :mod:`~phyloc.localization.tracking.range_models` (state and measurement models, the
 family's input types), :mod:`~phyloc.localization.tracking.pfbp`,
