@@ -249,8 +249,11 @@ class PFBPTracker:
         for _u in range(opt.n_iterations):  # lines 10–18, all agents in parallel
             new_chi = np.empty_like(chi)
             new_P = np.empty_like(P_bel)
-            # what each agent broadcasts: its belief's particles, or only its mean (+ P_bel)
-            means = chi.mean(axis=1) if opt.exchange == "gaussian" else None
+            # what each agent broadcasts: its belief's particles, or only its mean (+ P_bel);
+            # each broadcast belief's Cholesky factor once, not once per receiving agent
+            means = None
+            if opt.exchange == "gaussian":
+                means = (chi.mean(axis=1), np.stack([_flow.robust_cholesky(c) for c in P_bel]))
             for i in range(chi.shape[0]):
                 new_chi[i], new_P[i] = _agent_update(
                     i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt,
@@ -264,9 +267,9 @@ class PFBPTracker:
 def _agent_update(
     i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt, lambdas, steps, var, Sr, rng, means
 ):
-    """One belief update of agent ``i`` (PF-BP Algorithm 1, lines 12–16). With ``means``
-    (``exchange = "gaussian"``) the neighbours' particles are drawn here from
-    ``N(means[j], P_bel[j])``: ``chi[j]`` itself is not read."""
+    """One belief update of agent ``i`` (PF-BP Algorithm 1, lines 12–16). With ``means`` =
+    (mean, Cholesky factor of ``P_bel``) per agent (``exchange = "gaussian"``) the neighbours'
+    particles are drawn here from ``N(mean_j, P_bel[j])``: ``chi[j]`` itself is not read."""
     dim, nd, n_ag = model.dim, model.state_dim, X0.shape[0]
     rx, tx, zz, partners = agent_measurements(z_k, i, opt.factors)
     if zz.size == 0:
@@ -279,7 +282,9 @@ def _agent_update(
         if means is None or partners.size == 0:
             nb = [chi[j] for j in partners]
         else:  # PF-BP §VI: sample the neighbours' Gaussian beliefs locally
-            nb = list(sample_gaussian(means[partners], P_bel[partners], X0.shape[1], rng))
+            mu, L = means[0][partners], means[1][partners]
+            w = rng.standard_normal((partners.size, X0.shape[1], nd))
+            nb = list(mu[:, None, :] + np.einsum("aij,anj->ani", L, w))
         beta = np.concatenate([X0[i], *nb], axis=1)  # PF-BP eq. (21)
         P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # PF-BP eq. (28)
         beta_bar = beta.mean(axis=0)
