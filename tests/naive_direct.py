@@ -49,10 +49,20 @@ def direct_loglik_numpy(
 
 
 def gauss_loglik_numpy(
-    particles, offsets, nb_node, ranges, inv_var, centers, outlier_nats=np.inf, gamma=1.0
+    particles,
+    offsets,
+    nb_node,
+    ranges,
+    inv_var,
+    centers,
+    outlier_nats=np.inf,
+    gamma=1.0,
+    one_sided=False,
 ):
     """Twin of ``gauss_loglik_kernel``: Gaussian ranges with the ERV of DiPNet eq. (18), with
-    the outlier mixture ``γ·logaddexp(−½e²/var, −f)`` when ``outlier_nats`` f is finite."""
+    the outlier mixture ``γ·logaddexp(−½e²/var, −f)`` when ``outlier_nats`` f is finite; with
+    ``one_sided`` the outlier density is ``e^{−f}`` for ``d <= r`` and ``e^{−f}·e^{−½e²/var}``
+    for ``d > r``."""
     n_agents, Q, _ = particles.shape
     out = np.zeros((n_agents, Q))
     for a in range(n_agents):
@@ -62,7 +72,8 @@ def gauss_loglik_numpy(
                 if gamma == 0:
                     continue
                 g = -0.5 * inv_var[j] / gamma * (d - ranges[j]) ** 2
-                out[a] += gamma * np.logaddexp(g, -outlier_nats)
+                outlier = -outlier_nats + (np.where(d > ranges[j], g, 0.0) if one_sided else 0.0)
+                out[a] += gamma * np.logaddexp(g, outlier)
             else:
                 out[a] -= 0.5 * inv_var[j] * (d - ranges[j]) ** 2
     return out
@@ -151,8 +162,10 @@ def sampled_gauss_numpy(
     nb_count,
     gamma,
     outlier_nats=np.inf,
+    one_sided=False,
 ):
-    """Twin of ``sampled_gauss_kernel``: each link's message as a [Q_u, Q_v] matrix."""
+    """Twin of ``sampled_gauss_kernel``: each link's message as a [Q_u, Q_v] matrix (with
+    ``one_sided``, the one-sided outlier mixture of ``gauss_loglik_numpy`` per sample pair)."""
     n_agents, Q, _ = particles.shape
     out = np.zeros((n_agents, Q))
     for a in range(n_agents):
@@ -161,8 +174,13 @@ def sampled_gauss_numpy(
             pts = nb_points[v, : nb_count[v]]
             d = np.linalg.norm(particles[a][:, None, :] - pts[None], axis=2)
             ell = -0.5 * inv_var[j] * (d - ranges[j]) ** 2
-            msg = _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]])
-            _add_numpy(out[a], np.logaddexp(msg, -outlier_nats), gamma)
+            if one_sided and np.isfinite(outlier_nats):
+                ell = np.logaddexp(ell, -outlier_nats + np.where(d > ranges[j], ell, 0.0))
+                msg = _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]])
+            else:
+                msg = _sampled_message_numpy(ell, nb_logw[v, : nb_count[v]])
+                msg = np.logaddexp(msg, -outlier_nats)
+            _add_numpy(out[a], msg, gamma)
     return out
 
 

@@ -82,6 +82,13 @@ EVALUATE_RECIPES = [
     ("zero-prior-std", LOCALIZATION + "prior_std_m = 0.0\n", "prior_std_m"),
     ("zero-outlier-bound", LOCALIZATION + "outlier_nats = 0.0\n", "outlier_nats"),
     ("negative-model-error", LOCALIZATION + "model_error_m = -1.0\n", "model_error_m"),
+    (
+        "concentration-above-one",
+        LOCALIZATION + "los_min_concentration = 1.5\n",
+        "los_min_concentration",
+    ),
+    ("string-for-one-sided-start", LOCALIZATION + 'init_one_sided = "yes"\n', "init_one_sided"),
+    ("number-for-one-sided-bound", LOCALIZATION + "one_sided = 3\n", "one_sided"),
     ("unknown-likelihood", LOCALIZATION + 'likelihood = "magic"\n', "likelihood"),
     ("unknown-exchange", LOCALIZATION + 'exchange = "gossip"\n', "exchange"),
     ("resample-threshold-above-one", LOCALIZATION + "resample_ess = 2.0\n", "resample_ess"),

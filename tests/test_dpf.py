@@ -149,6 +149,12 @@ def test_loglik_kernels_match_numpy_twins(rng, dim):
         ref = gauss_loglik_numpy(X, offsets, nb, r, gamma * iv, centers, 4.0, gamma)
         np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-300)
         assert np.all(out >= -gamma * 4.0 * np.diff(offsets)[:, None] - 1e-12)
+        # one-sided: the same mixture where d < r, the Gaussian's pull where d > r
+        K.gauss_loglik_kernel(
+            X, np.arange(n_agents), offsets, nb, r, gamma * iv, centers, out, 4.0, gamma, True
+        )
+        ref = gauss_loglik_numpy(X, offsets, nb, r, gamma * iv, centers, 4.0, gamma, True)
+        np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-300)
 
 
 def test_log_normalize_kernel_matches_scipy_and_falls_back_to_uniform(rng):
@@ -521,7 +527,8 @@ def test_marginal_likelihood_is_the_convolution_of_the_exact_one(rng):
         y = np.linspace(-8 * s - 6, 8 * s + 6, 4001)
         for off in (-5.0, -0.7, 0.0, 0.3, 3.0):
             X = np.array([[pos[1] + (d_true + off) * direction]])
-            got = lik.loglik(X, pos, covs)[0, 0]
+            # loglik is relative to the link's highest peak height (``pk_ref``): add it back
+            got = lik.loglik(X, pos, covs)[0, 0] + lik.pk_ref[0]
             ell = np.abs(tab.exact((d_true + off - y)[None, :], links=[0])[0]) ** 2 * inv_scale
             if s2 == 0.0:
                 brute = np.log1p(np.exp(ell[y.size // 2]))  # no smoothing: the exact ℓ(d)
@@ -532,6 +539,27 @@ def test_marginal_likelihood_is_the_convolution_of_the_exact_one(rng):
             if s2 == 0.0 and abs(off) > 1.0:
                 continue  # far from the peak the unsmoothed Laplace tail is not the sinc²
             assert got == pytest.approx(brute, rel=0.03, abs=1.0)
+
+
+@pytest.mark.parametrize("pc_snr_db", [25.0, 120.0, 200.0])
+def test_marginal_evidence_bound_survives_extreme_snr(rng, pc_snr_db):
+    """At +200 dB the peak height ``h`` is ~1e20 nats, where float64 resolves only ~1e4 nats:
+    an absolute floor ``h − f`` would round the bound ``f`` away. Relative to each link's
+    highest peak it holds at any SNR: on the peak the link's log-likelihood is
+    ``f + log(1 + e^{−f})`` nats above a particle far from every peak (the floor), to 1e-6."""
+    from phyloc.localization.likelihoods import MarginalDirectLikelihood
+
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=pc_snr_db).select([0])
+    lik = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1, outlier_nats=10.0)
+    d_true = np.linalg.norm(pos[0] - pos[1])
+    direction = (pos[0] - pos[1]) / d_true
+    peak = lik.pk_d[np.argmax(lik.pk_h)]
+    X = np.array([[pos[1] + peak * direction, pos[1] + (peak + 40.0) * direction]])
+    ll = lik.loglik(X, pos, np.zeros((5, 2, 2)))[0]
+    assert np.all(np.isfinite(ll))
+    # log(e^0 + e^{−f}) − (−f) on the peak (no smoothing) against the floor
+    assert ll[0] - ll[1] == pytest.approx(10.0 + math.log1p(math.exp(-10.0)), abs=1e-6)
 
 
 def test_gauge_priors_show_the_published_collapse():

@@ -37,7 +37,8 @@ Initializations (labelled in every figure name)::
     ``truth_free`` (token ``<s>``)  Gaussian priors around a coarse two-step solution (MDS → SMACOF
                           on the correlation-peak ranges, the shorter of a pair's two
                           directions, then Cauchy-reweighted SMACOF so NLOS-biased ranges stop
-                          pulling; anchors fix the frame when present)
+                          pulling — one-sided: only ranges longer than the fit; links the NLOS
+                          identification rejects left out; anchors fix the frame when present)
     ``informed`` (``<s>_informed``)  Gaussian priors around the truth plus N(0, σ0²) — an informed
                           start, not a truth-free result
     ``gauge`` (``<s>_gauge``)  the paper's uninformative anchor-free gauge priors (shows the
@@ -108,6 +109,7 @@ from phyloc.network.rigidity import determined_pairs
 from phyloc.parallel import run_tasks
 from phyloc.phy.correlation import correlation_tables
 from phyloc.ranging import estimate
+from phyloc.ranging.nlos import check_min_concentration, energy_concentration
 
 METHODS = REGISTRY.family("direct")
 """The methods this experiment can run: every registered method of the direct family."""
@@ -122,6 +124,8 @@ PRIOR_KEYS = (
     "init_pair_range",
     "init_robust_scale_m",
     "init_restarts",
+    "init_one_sided",
+    "los_min_concentration",
 )
 """``[localization]`` keys of the experiment's priors; every other key is a method option."""
 
@@ -137,8 +141,14 @@ class LocalizationSpec:
     ``init_robust_scale_m`` (default ``[5.0, 2.0, 1.0]``; a number for one scale; 0: plain
     SMACOF) the Cauchy scales of its robust reweighting, the configuration with the lowest
     cost at the smallest scale winning, ``init_restarts`` (default 10) the random SMACOF
-    starts it adds to the MDS start, the lowest robust cost winning
-    (:func:`~phyloc.localization.initialization.coarse_positions`). Every other
+    starts it adds to the MDS start, the lowest robust cost winning, and ``init_one_sided``
+    (default true) whether the reweighting spares ranges shorter than the fitted distance
+    (NLOS biases are positive: a short range is noise, a long one may be biased)
+    (:func:`~phyloc.localization.initialization.coarse_positions`).
+    ``los_min_concentration`` (default 0.6; 0: off) is the NLOS identification: a link whose
+    correlation has an energy concentration below it
+    (:func:`~phyloc.ranging.nlos.energy_concentration`, 1 for one path) is left out of the
+    start and of every method's likelihood (``LinkMeasurements.usable``). Every other
     key is an option of the direct family (:class:`~phyloc.localization.DirectOptions`: the
     :class:`~phyloc.localization.DPFOptions` fields, ``outlier_nats`` …), kept as written in
     ``options``; a subtable
@@ -155,6 +165,8 @@ class LocalizationSpec:
     init_pair_range: str = "min"
     init_robust_scale_m: tuple = (5.0, 2.0, 1.0)
     init_restarts: int = 10
+    init_one_sided: bool = True
+    los_min_concentration: float = 0.6
 
     def __post_init__(self):
         v.positive("localization.prior_std_m", self.prior_std_m)
@@ -170,6 +182,7 @@ class LocalizationSpec:
             )
         object.__setattr__(self, "init_robust_scale_m", scales)
         v.integer("localization.init_restarts", self.init_restarts, minimum=0)
+        check_min_concentration(self.los_min_concentration, "localization.los_min_concentration")
         v.positive("localization.informed_std_m", self.informed_std_m)
         v.positive("localization.gauge_extent_m", self.gauge_extent_m)
         object.__setattr__(self, "options", dict(self.options))
@@ -269,6 +282,7 @@ def _priors(init, net, links, corr, lspec, Q, rng):
             "combine": lspec.init_pair_range,
             "robust_scale_m": tuple(c for c in lspec.init_robust_scale_m if c > 0) or None,
             "n_restarts": lspec.init_restarts,
+            "one_sided": lspec.init_one_sided,
             "rng": rng,
         }
         try:
@@ -320,13 +334,26 @@ def _dataset_task(payload, seed_seq):
     return _localize(real, system, rspec, lspec, methods, inits, seed_seq)
 
 
-def _measurements(real, tables, rspec, methods):
+def _usable(tables, rspec, lspec):
+    """Per snapshot, the links the NLOS identification keeps (``los_min_concentration``,
+    :func:`~phyloc.ranging.nlos.energy_concentration` over the ranging window at the
+    correlation peak's detection threshold); None when it is off."""
+    if lspec.los_min_concentration <= 0:
+        return None
+    kw = {"window_m": rspec.window_m}
+    if "noise_factor" in rspec.method_options("corr"):
+        kw["noise_factor"] = rspec.method_options("corr")["noise_factor"]
+    return tuple(energy_concentration(t, **kw) >= lspec.los_min_concentration for t in tables)
+
+
+def _measurements(real, tables, rspec, methods, usable=None):
     """The measurements of every snapshot of a realization, for every method's ``inputs``.
 
     Correlation tables, and the ranges of ``"corr"`` (the truth-free initialization and the
     link-bias figures read them) and of every estimator a method's ``inputs`` names
     (``"ranges:<estimator>"``; the oracle ``"sage_los"`` gets the true LOS flags here, in
-    the evaluation). Returns the measurements and, per estimator, its estimates per snapshot."""
+    the evaluation); ``usable`` the links the NLOS identification kept (:func:`_usable`).
+    Returns the measurements and, per estimator, its estimates per snapshot."""
     net = real.network
     ways = real.ways
     names = {"corr"}
@@ -363,6 +390,7 @@ def _measurements(real, tables, rspec, methods):
         },
         ways=ways,
         window_m=rspec.window_m,
+        usable=usable,
     )
     return meas, ranges
 
@@ -392,8 +420,11 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particl
         correlation_tables(rec, real.symbols, system, beta=rspec.beta, tx_index=lk[:, 1])
         for rec, lk in zip(real.received, real.links, strict=True)
     ]
-    meas, ests = _measurements(real, tables, rspec, [name for _, name, _ in plan])
+    usable = _usable(tables, rspec, lspec)
+    meas, ests = _measurements(real, tables, rspec, [name for _, name, _ in plan], usable)
     corr0 = ests["corr"][0]
+    if usable is not None:  # the start ranges only the links the identification kept
+        corr0 = dataclasses.replace(corr0, valid=corr0.valid & usable[0])
     out = {
         # distances of the realization's own links (recorded data need not have every link
         # the network's range allows; for simulated data they are the same links)
@@ -408,7 +439,9 @@ def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particl
         "los": np.concatenate([np.asarray(d.los, bool) for d in real.channels]),
         "observable": np.concatenate(
             [
-                observable_pairs(net, t, lk, e.valid, np.random.default_rng(streams[0]))
+                observable_pairs(
+                    net, t, lk, e.valid & meas.usable_links(t), np.random.default_rng(streams[0])
+                )
                 for t, (e, lk) in enumerate(zip(ests["corr"], real.links, strict=True))
             ]
         ),

@@ -90,6 +90,7 @@ def gauss_loglik_kernel(
     out,
     outlier_nats=np.inf,
     gamma=1.0,
+    one_sided=False,
 ):
     """``out[r, q] = Σ_j ℓ_j(‖x_{r,q} − c_{nb_node[j]}‖)`` over the links ``j`` of agent
     ``a = agents[r]`` (row ``r`` of ``particles`` and ``out`` is that agent; a subset of the
@@ -100,9 +101,13 @@ def gauss_loglik_kernel(
     ``outlier_nats`` f, each link is a mixture with an outlier component,
     ``ℓ_j = γ·log(e^{−½(d − r_j)²/var} + e^{−f})``, so one link moves a log-weight by at most
     ``γ f`` (``inv_var`` is then divided by ``gamma`` to get ``1/var``; ``gamma = 0`` gives 0).
+    With ``one_sided`` the outlier component covers only ranges longer than the distance
+    (``d < r_j``, a positive NLOS bias): for ``d > r_j`` it is ``e^{−f − ½(d − r_j)²/var}``, so
+    ``ℓ_j = γ·(−½(d − r_j)²/var + log(1 + e^{−f}))`` keeps the Gaussian's pull there.
     """
     n_rows, Q, _ = particles.shape
     robust = outlier_nats < np.inf
+    short = np.log1p(np.exp(-outlier_nats))  # the mixture's log(1 + e^{−f}) for d > r
     for r in prange(n_rows):
         a = agents[r]
         xs = np.empty(Q)
@@ -120,9 +125,12 @@ def gauss_loglik_kernel(
                 for q in range(Q):
                     e = xs[q] - rj
                     u = w * e * e  # −log of the Gaussian part
-                    out[r, q] -= gamma * (
-                        min(u, outlier_nats) - np.log1p(np.exp(-abs(u - outlier_nats)))
-                    )
+                    if one_sided and e > 0.0:
+                        out[r, q] -= gamma * (u - short)
+                    else:
+                        out[r, q] -= gamma * (
+                            min(u, outlier_nats) - np.log1p(np.exp(-abs(u - outlier_nats)))
+                        )
             else:
                 for q in range(Q):
                     e = xs[q] - rj
@@ -392,16 +400,21 @@ def sampled_gauss_kernel(
     gamma,
     out,
     outlier_nats=np.inf,
+    one_sided=False,
 ):
     """``out[a, q] = γ Σ_j log Σ_i exp(lw_{v,i} − ½ inv_var[j]·(‖x_{a,q} − y_{v,i}‖ − r_j)²)``.
 
     The sample-based message of the Gaussian ranging model (two-step, sample-based SAGE):
     range ``r_j`` with its model variance ``1/inv_var[j]``, the neighbour's belief particles in
     place of its mean and the ERV of DiPNet eq. (18). A finite ``outlier_nats`` f adds the
-    outlier component ``e^{−f}`` inside each link's log (``lw`` normalized).
+    outlier component ``e^{−f}`` inside each link's log (``lw`` normalized); with ``one_sided``
+    per neighbour sample, only where the distance is shorter than the range (the component of
+    :func:`gauss_loglik_kernel` with the same flag).
     """
     n_agents, Q = particles.shape[:2]
     q_max = nb_points.shape[1]
+    per_sample = one_sided and outlier_nats < np.inf
+    short = np.log1p(np.exp(-outlier_nats))
     for a in prange(n_agents):
         terms = np.empty(q_max)
         msg = np.empty(Q)
@@ -415,9 +428,15 @@ def sampled_gauss_kernel(
             for q in range(Q):
                 for i in range(n_v):
                     e = _distance(particles, a, q, nb_points, v, i) - r
-                    terms[i] = nb_logw[v, i] - w * e * e
+                    u = w * e * e
+                    if not per_sample:
+                        terms[i] = nb_logw[v, i] - u
+                    elif e > 0.0:
+                        terms[i] = nb_logw[v, i] - u + short
+                    else:
+                        terms[i] = nb_logw[v, i] + np.logaddexp(-u, -outlier_nats)
                 msg[q] = _log_sum(terms, n_v)
-                if outlier_nats < np.inf:
+                if outlier_nats < np.inf and not per_sample:
                     msg[q] = np.logaddexp(msg[q], -outlier_nats)
             _add_message(out[a], msg, gamma)
 

@@ -436,57 +436,81 @@ def smacof(D, W, X0, *, n_iter=200, tol=1e-9, fixed=None, return_history=False):
     return X, s
 
 
-def _cauchy_weights(D, W, X, c):
-    """``W / (1 + (r/c)²)``, ``r = D − ‖x_i − x_j‖`` (robust MDS reweighting)."""
-    r = D - _pairwise(X)
-    return W / (1.0 + (r / c) ** 2)
+def _robust_terms(r, c, one_sided):
+    """Cost ``ρ(r)`` and IRLS weight of range residuals ``r = δ − ‖x_i − x_j‖`` at scale ``c``.
+
+    Cauchy, ``ρ = log(1 + (r/c)²)`` with weight ``1 / (1 + (r/c)²)`` — on both sides, or with
+    ``one_sided`` only for ``r > 0`` (a range *longer* than the fitted distance, as an NLOS
+    excess delay makes it) and the plain quadratic ``ρ = (r/c)²``, weight 1, for ``r <= 0``:
+    a positive bias never makes a range shorter than the distance, so a short range is noise
+    and keeps its full pull. The two sides agree to second order at ``r = 0``.
+    """
+    z = (r / c) ** 2
+    cost, weight = np.log1p(z), 1.0 / (1.0 + z)
+    if one_sided:
+        short = r <= 0
+        cost, weight = np.where(short, z, cost), np.where(short, 1.0, weight)
+    return cost, weight
 
 
-def _cauchy_cost(D_row, w_row, X_other, points, c):
-    """``Σ_j w_j log(1 + ((δ_j − ‖x − x_j‖)/c)²)`` at each of ``points [m, dim]``."""
+def _cauchy_weights(D, W, X, c, one_sided=False):
+    """``W / (1 + (r/c)²)``, ``r = D − ‖x_i − x_j‖`` (robust MDS reweighting; ``one_sided``:
+    see :func:`_robust_terms`)."""
+    return W * _robust_terms(D - _pairwise(X), c, one_sided)[1]
+
+
+def _cauchy_cost(D_row, w_row, X_other, points, c, one_sided=False):
+    """``Σ_j w_j ρ(δ_j − ‖x − x_j‖)`` at each of ``points [m, dim]`` (:func:`_robust_terms`)."""
     r = D_row[None, :] - np.linalg.norm(points[:, None, :] - X_other[None, :, :], axis=-1)
-    return np.log1p((r / c) ** 2) @ w_row
+    return _robust_terms(r, c, one_sided)[0] @ w_row
 
 
-def _robust_fit(D, measured, X, c, rounds, n_iter, tol):
+def _robust_fit(D, measured, X, c, rounds, n_iter, tol, one_sided=False):
     """``rounds`` of Cauchy-reweighted SMACOF from ``X``. Returns ``(X, W, stress, cost)``,
-    ``cost`` the total Cauchy cost ``Σ_{i<j} w_ij log(1 + (r_ij/c)²)`` over the measured
-    pairs (the objective the reweighting descends)."""
+    ``cost`` the total robust cost ``Σ_{i<j} w_ij ρ(r_ij)`` over the measured pairs (the
+    objective the reweighting descends, :func:`_robust_terms`)."""
     W, s = measured, 0.0
     for _ in range(rounds):
-        W = _cauchy_weights(D, measured, X, c)
+        W = _cauchy_weights(D, measured, X, c, one_sided)
         X, s = smacof(D, W, X, n_iter=n_iter, tol=tol)
-    return X, W, s, _total_cauchy_cost(D, measured, X, c)
+    return X, W, s, _total_cauchy_cost(D, measured, X, c, one_sided)
 
 
 #: Cost difference below which two robust fits are the same fit (a 1 mm residual at 1 m).
 _COST_TIE = 1e-6
 
 
-def _total_cauchy_cost(D, measured, X, c) -> float:
-    """``Σ_{i<j} w_ij log(1 + (r_ij/c)²)`` over the measured pairs at configuration ``X``."""
-    r = D - _pairwise(X)
-    return float(np.sum(np.triu(measured * np.log1p((r / c) ** 2), 1)))
+def _lower(cost, best) -> bool:
+    """``cost`` beats ``best`` by more than :data:`_COST_TIE` (relative to ``1 + best``): exact
+    fits of a flexible network tie at ~1e-25, and rounding (complex64 storage of the samples)
+    must not decide between them; the earlier candidate keeps a tie."""
+    return cost < best - _COST_TIE * (1.0 + best)
 
 
-def _robust_solution(D, measured, starts, c, rounds, n_iter, tol, fixed):
+def _total_cauchy_cost(D, measured, X, c, one_sided=False) -> float:
+    """``Σ_{i<j} w_ij ρ(r_ij)`` over the measured pairs at configuration ``X``."""
+    cost = _robust_terms(D - _pairwise(X), c, one_sided)[0]
+    return float(np.sum(np.triu(measured * cost, 1)))
+
+
+def _robust_solution(D, measured, starts, c, rounds, n_iter, tol, fixed, one_sided=False):
     """The robust fit at scale ``c`` of :func:`coarse_positions`: every start through
     :func:`_robust_fit` (the lowest cost wins), then :func:`relocate_nodes` and, when a node
     moved, a refit kept if its cost is lower. Returns ``(X, W, stress)``."""
     best = None
     for Xs in starts:
-        fit = _robust_fit(D, measured, Xs, c, rounds, n_iter, tol)
-        if best is None or fit[3] < best[3]:
+        fit = _robust_fit(D, measured, Xs, c, rounds, n_iter, tol, one_sided)
+        if best is None or _lower(fit[3], best[3]):
             best = fit
-    X, moved = relocate_nodes(D, measured, best[0], c, fixed=fixed)
+    X, moved = relocate_nodes(D, measured, best[0], c, fixed=fixed, one_sided=one_sided)
     if moved.size:  # refine the repaired configuration the same way
-        fit = _robust_fit(D, measured, X, c, rounds, n_iter, tol)
-        if fit[3] < best[3]:
+        fit = _robust_fit(D, measured, X, c, rounds, n_iter, tol, one_sided)
+        if _lower(fit[3], best[3]):
             return fit[:3]
     return best[:3]
 
 
-def relocate_nodes(D, W, X, c, *, fixed=None, n_grid=41, min_gain=2.0, n_passes=2):
+def relocate_nodes(D, W, X, c, *, fixed=None, n_grid=41, min_gain=2.0, n_passes=2, one_sided=False):
     """Move nodes that a robust SMACOF left in a wrong basin to their best position.
 
     A node whose correct ranges are outvoted early (e.g. two ranges biased by 200 m pull it
@@ -509,6 +533,9 @@ def relocate_nodes(D, W, X, c, *, fixed=None, n_grid=41, min_gain=2.0, n_passes=
         Cauchy scale [m].
     fixed : [n] bool, optional
         Nodes never moved (anchors).
+    one_sided : bool
+        Down-weight only ranges longer than the distance (positive NLOS bias), the cost of
+        :func:`coarse_positions` with the same flag.
 
     Returns
     -------
@@ -529,7 +556,10 @@ def relocate_nodes(D, W, X, c, *, fixed=None, n_grid=41, min_gain=2.0, n_passes=
     moved = []
     for _ in range(n_passes):
         cost = np.array(
-            [_cauchy_cost(D[i], W[i], X, X[i][None], c)[0] if W[i].any() else 0.0 for i in range(n)]
+            [
+                _cauchy_cost(D[i], W[i], X, X[i][None], c, one_sided)[0] if W[i].any() else 0.0
+                for i in range(n)
+            ]
         )
         changed = False
         for i in np.argsort(-cost):
@@ -541,12 +571,12 @@ def relocate_nodes(D, W, X, c, *, fixed=None, n_grid=41, min_gain=2.0, n_passes=
             pad = 0.25 * np.maximum(hi - lo, c)
             grid = grid_of(lo - pad, hi + pad)
             cell = (hi - lo + 2 * pad) / (per_axis - 1)
-            g = _cauchy_cost(D[i, nb], W[i, nb], X[nb], grid, c)
+            g = _cauchy_cost(D[i, nb], W[i, nb], X[nb], grid, c, one_sided)
             x0 = grid[int(np.argmin(g))]
             fine = grid_of(x0 - 2 * cell, x0 + 2 * cell)
-            g = _cauchy_cost(D[i, nb], W[i, nb], X[nb], fine, c)
+            g = _cauchy_cost(D[i, nb], W[i, nb], X[nb], fine, c, one_sided)
             best = int(np.argmin(g))
-            now = _cauchy_cost(D[i, nb], W[i, nb], X[nb], X[i][None], c)[0]
+            now = _cauchy_cost(D[i, nb], W[i, nb], X[nb], X[i][None], c, one_sided)[0]
             if g[best] < now - min_gain:
                 X[i] = fine[best]
                 moved.append(int(i))
@@ -610,6 +640,7 @@ def coarse_positions(
     robust_scale_m=None,
     robust_rounds=10,
     invalid_weight=0.0,
+    one_sided=False,
 ) -> CoarseSolution:
     """Truth-free coarse network solution from range estimates: MDS → SMACOF → anchor frame.
 
@@ -678,6 +709,12 @@ def coarse_positions(
         Reweighting rounds (>= 1) when ``robust_scale_m`` is given.
     invalid_weight : float
         Weight of pairs known only from invalid ranges, see :func:`range_matrix`.
+    one_sided : bool
+        Ranges are biased only upwards (an NLOS excess delay makes a range longer, never
+        shorter): the Cauchy reweighting then applies only to ranges longer than the fitted
+        distance, and a shorter range keeps its full least-squares weight (cost ``(r/c)²``).
+        With many NLOS ranges (a small network where every link is detected) this keeps the
+        biased ranges from folding the network around them. Default False (symmetric).
 
     Returns
     -------
@@ -747,21 +784,24 @@ def coarse_positions(
         for _ in range(restarts):
             Xr, sr = smacof(D, W, rng.uniform(-extent, extent, size=(n, d)), n_iter=n_iter, tol=tol)
             starts.append(Xr)
-            if sr < s:
+            if _lower(sr, s):
                 X, s = Xr, sr
     if robust_scale_m is not None:  # per scale, every start robustly (lowest cost wins)
         measured, chosen = W, None
         for c in scales:
             X_c, W_c, s_c = _robust_solution(
-                D, measured, starts, c, rounds, n_iter, tol, anchor if n_anchor else None
+                D, measured, starts, c, rounds, n_iter, tol, anchor if n_anchor else None, one_sided
             )
-            cost = _total_cauchy_cost(D, measured, X_c, scales[-1])  # all at the finest scale
+            # all at the finest scale
+            cost = _total_cauchy_cost(D, measured, X_c, scales[-1], one_sided)
             # a smaller scale wins only by more than a 1 mm residual at the finest scale: fits
             # that tie (a flexible network fits exactly in many ways) keep the larger scale's,
             # so rounding (e.g. complex64 storage) cannot flip the choice
-            if chosen is None or cost < chosen[3] - _COST_TIE * (1.0 + chosen[3]):
+            if chosen is None or _lower(cost, chosen[3]):
                 chosen = (X_c, W_c, s_c, cost)
         X, W, s = chosen[:3]
+        if one_sided:  # polish symmetrically in the basin found: the sides agree within noise
+            X, W, s = _robust_fit(D, measured, X, scales[-1], rounds, n_iter, tol)[:3]
 
     if n_anchor:
         R, t = kabsch(X[anchor], A)

@@ -180,6 +180,11 @@ class GaussianRangeLikelihood:
     model_error_m : float
         Range model error [m] added to every link's variance (``σ² = var + model_error_m²``
         + the ERV term), for the range errors the thermal-noise variance leaves out.
+    one_sided : bool
+        With a finite ``outlier_nats``, the outlier component covers only ranges *longer* than
+        the distance (an NLOS excess delay is positive): where the distance exceeds the range
+        the link keeps the Gaussian's pull (``−(d − r̂)²/(2σ²) + log(1 + e^{−f})``), so a
+        particle too far from a neighbour is always pulled in. Default False (both sides).
 
     The model variance of a range estimator (its ZZB/CRB at the estimated SNR) is a thermal
     noise variance: it goes to 0 as the SNR grows, while an NLOS or multipath bias does not.
@@ -202,6 +207,7 @@ class GaussianRangeLikelihood:
         use_erv=True,
         outlier_nats=np.inf,
         model_error_m=0.0,
+        one_sided=False,
     ):
         links = np.asarray(links, dtype=np.int64)
         valid = np.asarray(valid, bool)
@@ -216,6 +222,9 @@ class GaussianRangeLikelihood:
         if not self.outlier_nats > 0:
             raise ValidationError("outlier_nats", outlier_nats, "> 0 (inf: no bound)")
         self.model_error_m = v.positive("model_error_m", model_error_m, allow_zero=True)
+        if not isinstance(one_sided, bool | np.bool_):
+            raise ValidationError("one_sided", one_sided, "true or false")
+        self.one_sided = bool(one_sided)
         self.ranges = r[idx]
         self.var = var[idx] + self.model_error_m**2
         self.use_erv = bool(use_erv)
@@ -254,6 +263,7 @@ class GaussianRangeLikelihood:
                 out,
                 self.outlier_nats,
                 float(gamma),
+                self.one_sided,
             )
             return out
 
@@ -284,7 +294,11 @@ class MarginalDirectLikelihood:
     such); ``DirectLikelihood`` is DiPNet eq. (25).
 
     Peaks are the grid maxima of ``|f|²`` in ``window_m`` with ``h_i >= max h − drop_nats``, at
-    most ``max_peaks`` per link (the highest).
+    most ``max_peaks`` per link (the highest). Heights are stored relative to each link's
+    highest, ``pk_ref`` (``pk_h = h − pk_ref``), and ``loglik`` returns the log-likelihood minus
+    ``Σ pk_ref`` over the agent's links — a constant per agent, which no weight sees, that keeps
+    the evidence bound exact at extreme SNR (``h ≈ 1e20`` nats at +200 dBm, where float64
+    resolves only ~1e4 nats).
 
     Robustness (``outlier_nats``, default 10): the floor ``e^0`` is raised to
     ``e^{h_max − outlier_nats}`` (``h_max`` the link's highest smoothed peak), i.e. a mixture
@@ -375,10 +389,17 @@ class MarginalDirectLikelihood:
         )
         # ranging information ν of the strongest peak per link (for covariance floors)
         self.nu = np.zeros(len(idx))
+        # heights relative to each link's highest peak (a per-link constant, which no weight
+        # sees): at extreme SNR h reaches 1e20 nats, where the absolute floor h_max − f would
+        # lose the f nats to rounding (float64 resolves ~1e4 nats there)
+        self.pk_ref = np.zeros(len(idx))
         for j in range(len(idx)):
             a, b = self.pk_off[j], self.pk_off[j + 1]
             if b > a:
-                self.nu[j] = self.pk_c[a + np.argmax(self.pk_h[a:b])] * self.ways**2
+                top = a + np.argmax(self.pk_h[a:b])
+                self.nu[j] = self.pk_c[top] * self.ways**2
+                self.pk_ref[j] = self.pk_h[top]
+                self.pk_h[a:b] -= self.pk_ref[j]
 
     def loglik(self, particles, centers, covs, gamma=1.0) -> np.ndarray:
         """``γ Σ_v log p̃(r_uv | x, p̂_v)`` for every particle, ``[n_agents, Q]``."""
@@ -505,15 +526,17 @@ class MarginalDirectLikelihood:
         return (s2 + self.model_error_m**2) * self.ways**2
 
     def _floors(self, s2) -> np.ndarray:
-        """Per-link floor ``max(0, max_i(h_i − ½log(1 + c_i s²)) − outlier_nats)``."""
+        """Per-link floor ``max(0, max_i(h_i − ½log(1 + c_i s²)) − outlier_nats)``, on the
+        relative scale of ``pk_h`` (heights minus the link's highest, ``pk_ref``): the noise
+        level ``0`` is ``−pk_ref`` there."""
         n_links = self.pk_off.size - 1
         if not np.isfinite(self.outlier_nats) or self.pk_d.size == 0:
-            return np.zeros(n_links)
+            return -self.pk_ref
         link_of_peak = np.repeat(np.arange(n_links), np.diff(self.pk_off))
         height = self.pk_h - 0.5 * np.log1p(self.pk_c * s2[link_of_peak])
         top = np.full(n_links, -np.inf)
         np.maximum.at(top, link_of_peak, height)
-        return np.maximum(0.0, top - self.outlier_nats)
+        return np.maximum(-self.pk_ref, top - self.outlier_nats)
 
 
 TABLE_RESOLUTION = 0.15
@@ -696,5 +719,6 @@ class SampledLikelihood:
                 float(gamma),
                 out,
                 base.outlier_nats,
+                base.one_sided,
             )
         return out

@@ -15,6 +15,8 @@ CRB) and a validity flag.
                 links by ground truth; ``oracle=True`` on its results.
 
 :func:`estimate` dispatches by name; :func:`ranging_variance` gives the model's variance.
+:func:`energy_concentration` is a truth-free NLOS identification from the waveform (the share of
+a link's correlation energy in its strongest peak, 1 for one path; :mod:`phyloc.ranging.nlos`).
 
 References
 ----------
@@ -40,6 +42,7 @@ from phyloc.ranging.estimators import (
     first_peak,
     nlos_rejected,
 )
+from phyloc.ranging.nlos import energy_concentration
 from phyloc.ranging.results import RangeEstimates
 from phyloc.ranging.sage import sage
 from phyloc.ranging.variance import ranging_variance
@@ -50,6 +53,7 @@ __all__ = [
     "ORACLES",
     "RangeEstimates",
     "correlation_peak",
+    "energy_concentration",
     "estimate",
     "first_peak",
     "nlos_rejected",

@@ -124,6 +124,10 @@ class LinkMeasurements:
         the round trip).
     window_m : (float, float)
         Search window of the correlation peak [m] (direct likelihoods, DiPNet eq. (21)).
+    usable : tuple of [n_links_t] bool, optional
+        Links an NLOS identification kept (e.g. by the energy concentration of
+        :func:`phyloc.ranging.nlos.energy_concentration`); the others are left out of every
+        likelihood, direct and two-step. None: every link.
     """
 
     n_nodes: int
@@ -135,6 +139,7 @@ class LinkMeasurements:
     ranges: Mapping = field(default_factory=dict)
     ways: int = 1
     window_m: tuple = (0.0, 300.0)
+    usable: tuple | None = None
 
     def __post_init__(self):
         n_nodes = int(self.n_nodes)
@@ -181,6 +186,14 @@ class LinkMeasurements:
                     raise ValidationError(
                         f"ranges[{name!r}][{t}]", f"{rs.range_m[t].size} links", len(links[t])
                     )
+        if self.usable is not None:
+            usable = tuple(
+                np.asarray(u, dtype=bool) for u in _per_snapshot("usable", self.usable, T)
+            )
+            for t, u in enumerate(usable):
+                if u.shape != (len(links[t]),):
+                    raise ValidationError(f"usable[{t}]", f"shape {u.shape}", f"[{len(links[t])}]")
+            object.__setattr__(self, "usable", usable)
         if int(self.ways) not in (1, 2):
             raise ValidationError("ways", self.ways, "1 (one-way) or 2 (two-way)")
         lo, hi = (float(x) for x in self.window_m)
@@ -228,6 +241,12 @@ class LinkMeasurements:
         if self.tables is None:
             raise ValidationError("measurements.tables", None, "correlation tables per snapshot")
         return self.tables[t]
+
+    def usable_links(self, t: int) -> np.ndarray:
+        """``[n_links_t]`` bool: the links of snapshot ``t`` the likelihoods may use."""
+        if self.usable is None:
+            return np.ones(len(self.links[t]), bool)
+        return self.usable[t]
 
     def range_set(self, name: str) -> LinkRanges:
         """The ranges of the estimator ``name``."""
