@@ -160,6 +160,8 @@ def test_same_results_with_one_and_two_workers():
         (("runs = 2", 'runs = 2\nsage_sigma_m = "mad"'), False, "experiment.sage_sigma_m"),
         (("runs = 2", "runs = 2\nsage_sigma_m = -1.0"), False, "experiment.sage_sigma_m"),
         (("[localization.edh]", "[localization.ed]"), False, "localization.ed"),
+        (("runs = 2", "runs = 2\nmemory_agents = [5, 0]"), False, "experiment.memory_agents"),
+        (("runs = 2", "runs = 2\nmemory_steps = 0"), False, "experiment.memory_steps"),
         (
             ("[localization.pfbp]", "[experiment.fast]\nrun = 1\n\n[localization.pfbp]"),
             True,
@@ -251,3 +253,28 @@ def test_a_variant_runs_its_base_method_with_its_own_table():
         with pytest.raises(ValidationError) as err:
             te.run(load_recipe(variant.replace(old, new, 1)), progress=False)
         assert err.value.field.startswith(key), err.value.field
+
+
+@pytest.mark.slow  # 12 fresh processes: ~1 min
+def test_memory_study_grows_as_the_methods_store_particles(tmp_path):
+    """The memory recipe's fast setting (3 and 6 agents, SIR-BP with 10⁴ particles): SIR-BP's
+    run needs at least one [M, 9] float64 particle array more per added agent (its belief),
+    PF-BP's (200 particles, Gaussian messages) stays below a tenth of SIR-BP's, and every
+    figure is measured (peak above the run's own part, both finite)."""
+    recipe = load_recipe((Path(__file__).parents[1] / "datasets/pfbp_memory.toml").read_text())
+    res = te.run(recipe, fast=True, progress=False)
+    f = res["figures"]
+    one_array_mb = 10_000 * 9 * 8 / 2**20
+    grow = f["sirbp.s1_r18.agents_6.run_rss_mb"] - f["sirbp.s1_r18.agents_3.run_rss_mb"]
+    assert grow >= 3 * one_array_mb
+    assert f["pfbp.s1_r18.agents_6.run_rss_mb"] < 0.1 * f["sirbp.s1_r18.agents_6.run_rss_mb"]
+    for m in ("pfbp", "sirbp", "spbp", "edh"):
+        for n in (3, 6):
+            peak, run = (
+                f[f"{m}.s1_r18.agents_{n}.peak_rss_mb"],
+                f[f"{m}.s1_r18.agents_{n}.run_rss_mb"],
+            )
+            assert math.isfinite(peak) and 0 <= run < peak
+    np.testing.assert_array_equal(res["series"]["memory_agents"], [3, 6])
+    te.plot(res, tmp_path / "m.png")
+    assert (tmp_path / "m_memory.png").stat().st_size > 0

@@ -104,6 +104,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -170,6 +171,14 @@ class TrackingExperimentSpec:
         σ given to the trackers with ``"sage"`` measurements (see the module docstring).
     method_options : dict
         ``{method: {key: value}}`` overriding ``[localization.<method>]`` keys.
+    memory_agents : tuple of int
+        Network sizes of the memory study (:func:`memory_study`; default none: no study). Each
+        method runs once per size in a fresh process and its peak resident set size is
+        reported (``<m>.<s>.agents_<n>.peak_rss_mb``, ``<s>`` the first scenario, whose
+        communication range the study uses); with any size the study also measures every
+        scenario at its own size (``<m>.<s>.peak_rss_mb``).
+    memory_steps : int
+        Time steps of each memory run (1: the arrays of a step are all a run allocates).
     """
 
     scenarios: dict = field(
@@ -195,6 +204,8 @@ class TrackingExperimentSpec:
     measurements: str = "gaussian"
     sage_sigma_m: float | str = "residual"
     method_options: dict = field(default_factory=dict)
+    memory_agents: tuple = ()
+    memory_steps: int = 1
 
     def __post_init__(self):
         if not isinstance(self.scenarios, dict) or not self.scenarios:
@@ -262,6 +273,11 @@ class TrackingExperimentSpec:
                 raise ValidationError(
                     "experiment.method_options", m, f"keys from {', '.join(methods)}"
                 )
+        sizes = tuple(
+            v.integer("experiment.memory_agents", n, minimum=1) for n in self.memory_agents
+        )
+        object.__setattr__(self, "memory_agents", sizes)
+        v.integer("experiment.memory_steps", self.memory_steps, minimum=1)
 
     @classmethod
     def from_dict(cls, d: dict, *, fast: bool = False) -> TrackingExperimentSpec:
@@ -470,6 +486,119 @@ def _task(payload, seed_seq):
     return out
 
 
+def _status_mb(field: str) -> float:
+    """A ``/proc/self/status`` memory field (``VmRSS``, ``VmHWM``) [MB]; NaN where absent."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith(field + ":"):
+                    return float(line.split()[1]) / 1024.0  # kB
+    except OSError:
+        pass
+    return math.nan
+
+
+def _reset_peak_rss() -> bool:
+    """Reset this process's peak RSS (``VmHWM``) to its current RSS (Linux >= 4.0:
+    ``echo 5 > /proc/self/clear_refs``); False where that is not possible."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def _peak_rss_mb() -> float:
+    """This process's peak resident set size so far [MB] (``ru_maxrss``: KiB on Linux)."""
+    import resource
+    import sys
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024.0**2 if sys.platform == "darwin" else 1024.0)  # bytes on macOS
+
+
+def _memory_probe(payload) -> tuple[float, float]:
+    """Peak RSS of one method on one network, in a fresh process: ``(before, peak)`` [MB].
+
+    The method first runs on a 2-agent, 1-step network with the same options (its kernels
+    compile or load from the cache there, so compiler memory is not counted), then the
+    scenario is simulated and the prior drawn. ``before`` is the resident set size then, and
+    the peak is measured from there on: the kernel's peak-RSS mark is reset to the current RSS
+    (``/proc/self/clear_refs``), so memory freed earlier (imports, compilation) cannot hide
+    the run's; where that reset is impossible, ``before`` is the high-water mark so far
+    (``ru_maxrss``) and a run below it reads as 0."""
+    exp, scen, options, base, seed = payload
+    rng = np.random.default_rng(seed)
+    method = METHODS[base]
+    tiny = dataclasses.replace(exp, n_steps=1)
+    sc, _ = _gaussian_scenario(tiny, {"n_agents": 2, "comm_range_m": math.inf}, rng)
+    small = options
+    if hasattr(options, "n_particles"):  # a small warm-up run
+        small = dataclasses.replace(options, n_particles=min(options.n_particles, 64))
+    meas = sc.measurements()
+    method.run(meas, paper_prior(meas, rng), rng, small)
+    sc, _ = _gaussian_scenario(exp, scen, rng)
+    meas = sc.measurements()
+    prior = paper_prior(meas, rng, sigma_p=exp.sigma_p, accel_init_factor=exp.accel_init_factor)
+    if _reset_peak_rss():
+        before = _status_mb("VmRSS")
+        method.run(meas, prior, rng, options)
+        return before, _status_mb("VmHWM")
+    before = _peak_rss_mb()
+    method.run(meas, prior, rng, options)
+    return before, _peak_rss_mb()
+
+
+def memory_study(exp, options, bases, seed, *, progress=True) -> dict:
+    """Peak memory of every method per network size (PF-BP abstract: PF-BP keeps a Gaussian
+    per agent where SIR-BP keeps and exchanges particles).
+
+    Each (method, network) runs :func:`_memory_probe` in a fresh spawned process, one at a
+    time (``ru_maxrss`` is a per-process high-water mark). Networks: every scenario of ``exp``
+    at its own size, and ``exp.memory_agents`` at the first scenario's communication range,
+    ``exp.memory_steps`` steps each, Gaussian range measurements (the tracker's memory does not
+    depend on how the ranges were measured). Returns figures ``<m>.<s>.peak_rss_mb`` (the
+    process's peak RSS during the run) and ``<m>.<s>.run_rss_mb`` (that peak minus the RSS
+    before the run: what the method itself needed), and the same per size as
+    ``<m>.<s>.agents_<n>.peak_rss_mb`` / ``.run_rss_mb``."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from tqdm.auto import tqdm
+
+    from phyloc.parallel import _quiet_progress
+
+    first = next(iter(exp.scenarios))
+    short = dataclasses.replace(exp, n_steps=exp.memory_steps)
+    jobs = []
+    for tok, scen in exp.scenarios.items():
+        jobs.append((f"{tok}", scen))
+    for n in exp.memory_agents:
+        r = exp.scenarios[first]["comm_range_m"]
+        jobs.append((f"{first}.agents_{n}", {"n_agents": n, "comm_range_m": r}))
+    seeds = np.random.SeedSequence(seed).spawn(len(jobs))
+    ctx = multiprocessing.get_context("spawn")
+    figures = {}
+    todo = [
+        (m, label, scen, s)
+        for m in exp.methods
+        for (label, scen), s in zip(jobs, seeds, strict=True)
+    ]
+    bar = tqdm(total=len(todo), desc="memory", disable=not progress or _quiet_progress())
+    try:
+        for m, label, scen, s in todo:
+            with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+                payload = (short, scen, options[m], bases[m], s)
+                before, after = pool.submit(_memory_probe, payload).result()
+            figures[f"{m}.{label}.peak_rss_mb"] = after
+            figures[f"{m}.{label}.run_rss_mb"] = max(after - before, 0.0)
+            bar.update(1)
+    finally:
+        bar.close()
+    return figures
+
+
 def prepare(recipe: Recipe, *, fast: bool = False):
     """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
     full one) and return what it runs; no work is done (``phyloc evaluate`` and
@@ -515,6 +644,15 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         progress=progress,
     )
     figures, series = _aggregate(keys, results, exp)
+    if exp.memory_agents:
+        mem = memory_study(exp, options, bases, recipe.seed, progress=progress)
+        figures.update(mem)
+        first = next(iter(exp.scenarios))
+        series["memory_agents"] = np.asarray(exp.memory_agents)
+        for m in exp.methods:
+            series[f"{m}.{first}.peak_rss_mb_by_agents"] = np.array(
+                [mem[f"{m}.{first}.agents_{n}.peak_rss_mb"] for n in exp.memory_agents]
+            )
     meta = {
         "recipe": recipe.name,
         "kind": recipe.kind,
@@ -532,6 +670,7 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         "options": {m: dataclasses.asdict(o) for m, o in options.items()},
         "labels": {m: METHODS[m].label if m == b else m for m, b in bases.items()},
         "bases": dict(bases),
+        "memory_agents": list(exp.memory_agents),
         "timing": "median wall time over all steps of all runs (includes worker contention)",
     }
     if exp.measurements == "sage":
@@ -674,6 +813,15 @@ def summary_lines(results: dict):
                 parts.append(f"{m} {o}")
             thr = "/".join(f"{x:g}" for x in meta["outage_thresholds_m"])
             out.append(f"{tok} k={k} outage P(e > {thr} m): " + "; ".join(parts))
+        if sizes := meta.get("memory_agents"):
+            first = next(iter(meta["scenarios"]))
+            mem = "; ".join(
+                f"{m} " + "/".join(f"{f[f'{m}.{first}.agents_{n}.run_rss_mb']:.3g}" for n in sizes)
+                for m in meta["methods"]
+            )
+            if tok == first:
+                agents = "/".join(str(n) for n in sizes)
+                out.append(f"{tok}: memory of one run [MB] at {agents} agents: {mem}")
         if (key := f"sirbp_over_pfbp.{tok}.step_ratio") in f:
             out.append(f"{tok}: SIR-BP / PF-BP time per step = {f[key]:.3g}")
         if (key := f"sage.{tok}.range_rmse_m") in f:
@@ -753,4 +901,29 @@ def plot(results: dict, path) -> None:
     fast = " (fast)" if meta.get("fast") else ""
     sep = "\n" if len(toks) == 1 else " — "  # one column: the title on two lines
     fig.suptitle(f"Cooperative tracking vs PCRLB{sep}{meta['recipe']}{fast}")
+    fig.savefig(path, dpi=100)
+    if "memory_agents" in ser:
+        _plot_memory(results, Path(path).with_name(f"{Path(path).stem}_memory.png"))
+
+
+def _plot_memory(results: dict, path) -> None:
+    """Peak RSS added by each method's run versus the number of agents (the memory study)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig_, ser, meta = results["figures"], results["series"], results["meta"]
+    first = next(iter(meta["scenarios"]))
+    n = ser["memory_agents"]
+    fig = Figure(figsize=(5.5, 4.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    for i, m in enumerate(meta["methods"]):
+        run = [fig_[f"{m}.{first}.agents_{a}.run_rss_mb"] for a in n]
+        ax.loglog(n, np.maximum(run, 0.1), "o-", color=f"C{i}", label=m)
+    ax.set_xlabel("number of agents")
+    ax.set_ylabel("memory of one run [MB] (peak RSS added)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    r = meta["scenarios"][first]["comm_range_m"]
+    ax.set_title(f"{meta['recipe']}: memory vs network size (r_max = {r:g} m)", fontsize=9)
     fig.savefig(path, dpi=100)
