@@ -20,8 +20,10 @@ around the agent. Figures (names are the interface):
 ``poa.intersect_speedup_vs_numpy``           NumPy twin time / kernel time
 ``nbp.ns<N>.time_per_node_iteration_s``      POA-NBP (polygon proposal), N in 100 200 400 800 [s]
 ``nbp_min_entropy.ns<N>.time_per_node_iteration_s``   NBP with the min-entropy proposal [s]
+``nbp_aux.ns<N>.time_per_node_iteration_s``   NBP with the auxiliary (anchor) proposal [s]
 ``nbp.cost_exponent``                        d log(time) / d log(N_S) of POA-NBP (least squares)
 ``nbp_min_entropy.cost_exponent``            ... of min-entropy NBP
+``nbp_aux.cost_exponent``                    ... of auxiliary-proposal NBP
 ``nbp.kde.ns<N>.time_s``                     one POA-NBP eq. (8) KDE evaluation, numba kernel,
                                              1 thread [s]
 ``nbp.kde.cost_exponent``                    d log(time) / d log(N_S) of the KDE (2: N_S²)
@@ -88,7 +90,7 @@ N_FS = 2
 N_ITER = 4
 SAMPLE_SWEEP = (100, 200, 400, 800)
 KDE_MESSAGES = 10
-PROPOSALS = {"nbp": "polygon", "nbp_min_entropy": "min_entropy"}
+PROPOSALS = {"nbp": "polygon", "nbp_min_entropy": "min_entropy", "nbp_aux": "auxiliary"}
 
 
 def make_scenario(seed: int = 0, n_agents: int = N_AGENTS):

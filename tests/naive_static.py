@@ -120,6 +120,43 @@ def clip_groups_numpy(verts, A, c, group_off, tol, allow_drop):
     return v, dropped
 
 
+def clip_groups_count_numpy(verts, A, c, group_off, tol, allow_drop):
+    """Plain-NumPy twin of :func:`clip_groups_count_kernel`: ``(vertices, dropped, n_tests)``.
+
+    ``n_tests`` counts, for every halfspace applied, the vertices of the list it is applied
+    to (Sutherland–Hodgman visits each once); the list is cleaned after each group only.
+    """
+    v = np.asarray(verts, dtype=np.float64).reshape(-1, 2)
+    n_groups = len(group_off) - 1
+    dropped = np.zeros(n_groups, dtype=bool)
+    n_tests = 0
+    for g in range(n_groups):
+        if v.shape[0] == 0:
+            break
+        w = v
+        for h in range(group_off[g], group_off[g + 1]):
+            n_tests += w.shape[0]
+            d = w @ A[h] - c[h]
+            dn = np.roll(d, -1)
+            nxt = np.roll(w, -1, axis=0)
+            rows = []
+            for k in range(w.shape[0]):
+                if d[k] <= tol:
+                    rows.append(w[k])
+                    if dn[k] > tol and d[k] < 0.0:
+                        rows.append(w[k] + d[k] / (d[k] - dn[k]) * (nxt[k] - w[k]))
+                elif dn[k] <= tol and dn[k] < 0.0:
+                    rows.append(w[k] + d[k] / (d[k] - dn[k]) * (nxt[k] - w[k]))
+            w = np.array(rows, dtype=np.float64).reshape(-1, 2)
+            if w.shape[0] == 0:
+                break
+        if w.shape[0] == 0 and allow_drop:
+            dropped[g] = True
+        else:
+            v = clean_numpy(w, tol)
+    return v, dropped, n_tests
+
+
 def support_halfspaces_numpy(v, max_turn):
     """Plain-NumPy twin of :func:`support_halfspaces_kernel`."""
     v = np.asarray(v, dtype=np.float64).reshape(-1, 2)

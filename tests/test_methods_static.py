@@ -44,7 +44,7 @@ def _options(method, n_iterations=3):
 
 
 def test_the_paper_methods_are_registered_with_labels():
-    assert STATIC[:7] == (
+    assert STATIC[:8] == (
         "poa_nbp",
         "nbp_ellipse",
         "nbp_min_entropy",
@@ -52,9 +52,20 @@ def test_the_paper_methods_are_registered_with_labels():
         "nbp_parsimonious",
         "pbp",
         "wls",
+        "nbp_aux",
     )
-    labels = [METHODS[m].label for m in STATIC[:7]]
-    assert labels == ["POA-NBP", "NBP ell.", "NBP min.", "NBP mix.", "NBP par.", "PBP", "WLS"]
+    labels = [METHODS[m].label for m in STATIC[:8]]
+    assert labels == [
+        "POA-NBP",
+        "NBP ell.",
+        "NBP min.",
+        "NBP mix.",
+        "NBP par.",
+        "PBP",
+        "WLS",
+        "NBP aux.",
+    ]
+    assert METHODS["nbp_aux"].make_options().proposal == "auxiliary"
     assert METHODS["poa_nbp"].make_options().proposal == "polygon"
     assert METHODS["poa_nbp"].make_options().support == "poa"
     assert METHODS["nbp_ellipse"].make_options().support == "ellipse"

@@ -26,7 +26,7 @@ n_agents = 30
 side_m = 60.0
 n_edges = [4, 16]
 poa_iterations = 3
-methods = ["poa_nbp", "nbp_ellipse", "nbp_min_entropy", "pbp", "wls"]
+methods = ["nbp_aux", "poa_nbp", "nbp_ellipse", "nbp_min_entropy", "pbp", "wls"]
 n_iterations = 3
 n_samples = 40
 sample_sweep = [20, 40]
@@ -100,6 +100,52 @@ def test_polygons_contain_every_agent_and_shrink(tiny):
     assert 0.0 < f["poa.rejection_acceptance_rate"] <= 1.0
     # a 16-gon circumscribes each anchor disk more tightly than a square
     assert f["poa.ne16.area_it1_m2"] < f["poa.ne4.area_it1_m2"]
+
+
+def test_overhead_figures_follow_the_methods_complexity(tiny):
+    """Floats per link-iteration and operations per node (POA-NBP §II-B, §V-C2): NBP broadcasts
+    N_S samples × 2 coordinates, PBP mean + covariance (5), joint WLS nothing (no figure); NBP's
+    kernel evaluations grow as N_S² (the POA share is the same at both N_S); POA sends 2 floats
+    per vertex and its operations grow with N_E."""
+    f = tiny["figures"]
+    assert f["poa_nbp.ns20.floats_per_link_iteration"] == 40.0
+    assert f["poa_nbp.ns40.floats_per_link_iteration"] == 80.0
+    for m in ("nbp_aux", "nbp_ellipse", "nbp_min_entropy"):
+        assert f[f"{m}.ns40.floats_per_link_iteration"] == 80.0
+        assert f[f"{m}.ns40.operations_per_node"] > 0
+    assert f["pbp.ns40.floats_per_link_iteration"] == 5.0
+    assert "wls.ns40.floats_per_link_iteration" not in f
+    assert "wls.ns40.operations_per_node" not in f
+    ratio = f["poa_nbp.ns40.operations_per_node"] / f["poa_nbp.ns20.operations_per_node"]
+    assert 3.0 < ratio < 4.5, ratio
+    assert f["poa.ne16.floats_per_link_iteration"] > f["poa.ne4.floats_per_link_iteration"] >= 6
+    assert f["poa.ne16.operations_per_node"] > f["poa.ne4.operations_per_node"] > 0
+    assert f["poa_nbp.ns40.support_floats_per_link_iteration"] >= 6.0
+    assert f["nbp_ellipse.ns40.support_floats_per_link_iteration"] == 5.0
+    headers = se.summary_headers(tiny)
+    rows = se.summary_rows(tiny)
+    assert headers[-2:] == ["floats/link-it", "ops/node"]
+    assert [r[0] for r in rows][:2] == ["NBP aux.", "POA-NBP"]  # the recipe's column order
+    assert rows[1][-2] == 80.0 and math.isnan(rows[-1][-2])
+
+
+def test_default_methods_follow_table_1():
+    assert se.METHODS == (
+        "nbp_min_entropy",
+        "nbp_aux",
+        "nbp_parsimonious",
+        "nbp_ellipse",
+        "pbp",
+        "wls",
+        "poa_nbp",
+        "nbp_mixture",
+    )
+    recipe = load_recipe(DATASETS / "poa_nbp.toml")
+    exp = se.StaticExperimentSpec.from_dict(recipe.section("experiment"))
+    assert exp.methods == se.METHODS
+    assert max(exp.sample_sweep) >= 1000 and {800, 1600} <= set(exp.sample_sweep)
+    fast = se.StaticExperimentSpec.from_dict(recipe.section("experiment"), fast=True)
+    assert max(fast.sample_sweep) <= 100
 
 
 def test_convergence_and_settling_from_curve():

@@ -14,17 +14,23 @@ communication range, one-sided exponential ranging errors of mean 0.38 m, POA-NB
 2. **Localization** (POA-NBP Figs. 10, 11, Table I): every method of ``experiment.methods``,
    looked up in :data:`phyloc.localization.METHODS` (family ``"static"``) and run as
    ``run(measurements, prior, rng, options)`` on the scenario's truth-free measurements. The
-   paper's comparison (:data:`METHODS`; see :mod:`phyloc.localization.static`)::
+   paper's comparison (:data:`METHODS`, in the column order of POA-NBP Table I, with
+   ``nbp_mixture`` as an extra column; see :mod:`phyloc.localization.static`)::
 
-       ``poa_nbp``           NBP with the uniform proposal in each agent's POA polygon (POA-NBP
-                             eq. (21); ``N_E = poa_n_edges``, ``N_FS = poa_n_fs``)
-       ``nbp_ellipse``       NBP with the uniform proposal in the ellipse outer-approximation
-                             ('NBP ell.'; ``poa_n_fs`` iterations, like the polygons)
-       ``nbp_min_entropy``   NBP sampling the incoming message of least entropy ('NBP min.')
-       ``nbp_mixture``       NBP sampling the mixture of incoming messages (plus a uniform fraction)
-       ``nbp_parsimonious``  NBP sampling the previous belief ('NBP par.')
-       ``pbp``               parametric (Gaussian) BP ('PBP')
-       ``wls``               weighted least squares by Gauss–Newton ('WLS')
+       ``nbp_min_entropy``   [19] NBP sampling the incoming message of least entropy ('NBP min.')
+       ``nbp_aux``           [27] NBP sampling the product of the anchor messages by
+                             auxiliary-variable importance resampling ('NBP aux.')
+       ``nbp_parsimonious``  [25] NBP sampling the previous belief ('NBP par.')
+       ``nbp_ellipse``       [39] NBP with the uniform proposal in the ellipse
+                             outer-approximation ('NBP ell.'; ``poa_n_fs`` iterations)
+       ``pbp``               [19] parametric (Gaussian) BP ('PBP')
+       ``wls``               [5] weighted least squares by Gauss–Newton ('WLS')
+       ``poa_nbp``           NBP with the uniform proposal in each agent's POA polygon ('NBP
+                             prop.', POA-NBP eq. (21); ``N_E = poa_n_edges``, ``N_FS = poa_n_fs``)
+       ``nbp_mixture``       [27] NBP sampling the mixture of incoming messages (plus a uniform
+                             fraction; not in Table I)
+
+   The table columns follow the order of ``experiment.methods``.
 
    A method's options are its registered defaults (e.g. the proposal of an NBP variant),
    updated by the recipe table of its options class (``[localization.nbp]``,
@@ -48,8 +54,20 @@ iterations, plus the method's setup time per node (its ``setup_time_per_node_s``
 the outer-approximation of ``poa_nbp`` and ``nbp_ellipse``, the MDS start of ``pbp``, ``wls``).
 Errors "after convergence" are those of the last iteration (``n_iterations`` >= convergence).
 
+Communication and operations: the scenario token ``<s>`` of the overhead figures names the
+run, ``ns<n>`` with its ``N_S``: the comparison of step 2 at ``N_S = n_samples`` gives
+``<m>.ns<n_samples>.*`` for every method (PBP and WLS too, which have no samples: the token
+names the run), each sample-sweep run gives ``<m>.ns<n>.*``; where a sweep run repeats the
+comparison's method and ``N_S`` the comparison's value is kept. The numbers come from each
+method's ``Result.diagnostics`` (``floats_per_link_iteration``, ``operations_per_node``,
+``support_floats_per_link_iteration``; see :mod:`phyloc.localization.static.nbp` and
+:mod:`phyloc.localization.static.gaussian_bp` for what is counted) and from
+:class:`~phyloc.localization.static.polygons.POAResult` for the polygon study; a NaN (no
+messages: ``wls`` in joint mode, centralized; no support phase) gives no figure.
+
 Figures (``results.json``; ``<m>`` a method, ``<ne>`` an ``N_E``, ``<l>`` an iteration, ``<n>``
-an ``N_S`` of the sweep, ``<x>`` an outage threshold written with ``p`` for the decimal point)::
+an ``N_S`` of the sweep, ``<s>`` a run token ``ns<n>``, ``<x>`` an outage threshold written
+with ``p`` for the decimal point)::
 
     ``poa.containment_fraction``        fraction of (topology, agent) polygons of the proposal
                                         setting (``poa_n_edges``, ``poa_n_fs``) containing the
@@ -61,6 +79,18 @@ an ``N_S`` of the sweep, ``<x>`` an outage threshold written with ``p`` for the 
                                         rejection from their bounding boxes (the paper's way;
                                         phyloc samples exactly by triangle fan)
     ``poa.dropped_fraction``            fraction of measurements POA dropped as inconsistent
+    ``poa.ne<ne>.floats_per_link_iteration``  floats per agent–agent link and broadcast of the
+                                        polygon study's POA (2 per vertex; POA-NBP Algorithm 1)
+    ``poa.ne<ne>.operations_per_node``  POA operations per agent over ``poa_iterations``
+                                        iterations (Algorithms 2–4; mean per node and run)
+    ``<m>.<s>.floats_per_link_iteration``   floats one agent sends one neighbour per
+                                        message-passing iteration (NBP: ``2·N_S``; PBP: 5;
+                                        none for joint WLS)
+    ``<m>.<s>.operations_per_node``     operations per agent and run (NBP: KDE kernel
+                                        evaluations, plus POA's operations for ``poa_nbp``)
+    ``<m>.<s>.support_floats_per_link_iteration``   floats per link and broadcast of the
+                                        support phase (``poa_nbp``: polygons; ``nbp_ellipse``:
+                                        5 per ellipse)
     ``<m>.mean_error_m``                average localization error after convergence [m]
                                         (Fig. 10)
     ``<m>.rmse_m``                      RMSE after convergence [m]
@@ -110,13 +140,14 @@ from phyloc.parallel import run_tasks
 #: method registered in :data:`phyloc.localization.METHODS` with family ``"static"`` may be
 #: listed.
 METHODS = (
-    "poa_nbp",
-    "nbp_ellipse",
     "nbp_min_entropy",
-    "nbp_mixture",
+    "nbp_aux",
     "nbp_parsimonious",
+    "nbp_ellipse",
     "pbp",
     "wls",
+    "poa_nbp",
+    "nbp_mixture",
 )
 #: Option keys filled from ``[experiment]`` (a recipe's ``[localization.<table>]`` must not set
 #: them) where the method's options have them; ``proposal`` and ``support`` are set by the
@@ -343,6 +374,8 @@ def _task(payload, seed_seq):
         )
         out[f"poa|{ne}|area"] = r.area_history
         out[f"poa|{ne}|contained"] = _contained(r.polygons, truth)
+        out[f"poa|{ne}|ops"] = r.operations_per_node
+        out[f"poa|{ne}|floats"] = r.floats_per_link_iteration
     # the proposal polygons: N_E = poa_n_edges, N_FS = poa_n_fs, their own stream; methods that
     # use POA support get them through the prior (computed once, as the figures need them)
     prop = poa(
@@ -368,6 +401,8 @@ def _task(payload, seed_seq):
             sc.region,
             polygons=list(prop.polygons),
             polygon_time_per_node_s=out["poa|time_per_node_s"],
+            polygon_operations_per_node=prop.operations_per_node,
+            polygon_floats_per_link_iteration=prop.floats_per_link_iteration,
         ),
         None: StaticPrior(sc.region),
     }
@@ -388,6 +423,7 @@ def _task(payload, seed_seq):
         out[f"{m}|err"] = _errors(res, truth)
         out[f"{m}|time"] = float(np.mean(res.timing.agent_s))
         out[f"{m}|t_support"] = float(res.diagnostics.get("setup_time_per_node_s", 0.0))
+        out[f"{m}|overhead"] = _overhead(res)
     # 3. sample sweep (Fig. 12)
     for m in exp.sample_methods:
         for ns in exp.sample_sweep:
@@ -397,7 +433,29 @@ def _task(payload, seed_seq):
             res = _run_method(m, meas, priors, opts, mrng)
             out[f"{m}|ns{ns}|err"] = _errors(res, truth)[-1]
             out[f"{m}|ns{ns}|time"] = float(np.mean(res.timing.agent_s))
+            out[f"{m}|ns{ns}|overhead"] = _overhead(res)
     return out
+
+
+#: Overhead diagnostics of a static method's ``Result`` that become figures (NaN: none).
+_OVERHEAD = (
+    "floats_per_link_iteration",
+    "operations_per_node",
+    "support_floats_per_link_iteration",
+)
+
+
+def _overhead(res) -> dict:
+    return {k: float(res.diagnostics.get(k, np.nan)) for k in _OVERHEAD}
+
+
+def _overhead_figures(figures, base, parts) -> None:
+    """Mean over topologies of each overhead diagnostic, as ``<base>.<name>`` (NaN: none;
+    an existing figure is kept)."""
+    for k in _OVERHEAD:
+        vals = np.array([p[k] for p in parts], dtype=np.float64)
+        if vals.size and not np.all(np.isnan(vals)):
+            figures.setdefault(f"{base}.{k}", float(np.nanmean(vals)))
 
 
 def _contained(polygons, truth):
@@ -497,6 +555,12 @@ def _aggregate(results, exp: StaticExperimentSpec):
             figures[f"poa.ne{ne}.area_it{it + 1}_m2"] = float(mean_area[it])
         cont = np.concatenate([r[f"poa|{ne}|contained"] for r in results])
         figures[f"poa.ne{ne}.containment_fraction"] = float(cont.mean())
+        figures[f"poa.ne{ne}.operations_per_node"] = float(
+            np.mean([r[f"poa|{ne}|ops"] for r in results])
+        )
+        fl = np.array([r[f"poa|{ne}|floats"] for r in results], dtype=np.float64)
+        if not np.all(np.isnan(fl)):  # NaN: no broadcast (poa_iterations = 1)
+            figures[f"poa.ne{ne}.floats_per_link_iteration"] = float(np.nanmean(fl))
     if exp.ellipses:
         area = np.concatenate([r["ellipse|area"] for r in results], axis=1)
         mean_area = _finite_mean(area)
@@ -532,6 +596,7 @@ def _aggregate(results, exp: StaticExperimentSpec):
         series[f"{m}.outage"] = np.mean(final[:, None] > OUTAGE_GRID_M, axis=0)
         for x in exp.outage_thresholds_m:
             figures[f"{m}.outage_{_threshold_name(x)}"] = float(np.mean(final > x))
+        _overhead_figures(figures, f"{m}.ns{exp.n_samples}", [r[f"{m}|overhead"] for r in results])
     for m in exp.sample_methods:
         for ns in exp.sample_sweep:
             e = np.concatenate([r[f"{m}|ns{ns}|err"] for r in results])
@@ -543,6 +608,7 @@ def _aggregate(results, exp: StaticExperimentSpec):
             series[f"{base}.outage"] = np.mean(e[:, None] > OUTAGE_GRID_M, axis=0)
             for x in exp.outage_thresholds_m:
                 figures[f"{base}.outage_{_threshold_name(x)}"] = float(np.mean(e > x))
+            _overhead_figures(figures, base, [r[f"{m}|ns{ns}|overhead"] for r in results])
     if "poa_nbp" in exp.methods:  # POA-NBP Table I: POA-NBP against the other NBP variants
         for m in exp.methods:
             if m != "poa_nbp" and REGISTRY[m].options is REGISTRY["poa_nbp"].options:
@@ -575,12 +641,15 @@ def summary_headers(results: dict):
         "t/node-it [s]",
         "t conv. [s]",
         *[f"P(e>{x:g} m)" for x in thr],
+        "floats/link-it",
+        "ops/node",
     ]
 
 
 def summary_rows(results: dict):
     """Accuracy after convergence, iterations and time to convergence per method."""
     f, meta = results["figures"], results["meta"]
+    tok = f"ns{meta['experiment']['n_samples']}"
     rows = []
     for m in meta["methods"]:
         rows.append(
@@ -592,6 +661,8 @@ def summary_rows(results: dict):
                 f[f"{m}.time_per_node_iteration_s"],
                 f[f"{m}.time_to_convergence_s"],
                 *[f[f"{m}.outage_{_threshold_name(x)}"] for x in meta["outage_thresholds_m"]],
+                f.get(f"{m}.{tok}.floats_per_link_iteration", float("nan")),
+                f.get(f"{m}.{tok}.operations_per_node", float("nan")),
             )
         )
     return rows

@@ -22,6 +22,10 @@ name                  label        method
 ``nbp_parsimonious``  NBP par.     NBP sampling the previous belief
 ``pbp``               PBP          parametric (Gaussian) BP from the MDS start
 ``wls``               WLS          weighted least squares by Gauss–Newton from the MDS start
+``nbp_aux``           NBP aux.     NBP sampling the product of the anchor messages by
+                                   auxiliary-variable importance resampling (POA-NBP
+                                   ref. [27]; the mixture proposal without anchor
+                                   neighbours)
 ====================  ===========  =========================================================
 
 Modules: :mod:`~phyloc.localization.static.static_ranges` (measurement models and the family's
@@ -161,4 +165,14 @@ register_method(
     label="WLS",
     inputs=_INPUTS,
     description="weighted least squares by damped Gauss–Newton, from the MDS start",
+)
+register_method(
+    "nbp_aux",
+    family="static",
+    run=run_nbp,
+    options=NBPOptions,
+    defaults={"proposal": "auxiliary"},
+    label="NBP aux.",
+    inputs=_INPUTS,
+    description="NBP sampling the product of the anchor messages (auxiliary variable)",
 )

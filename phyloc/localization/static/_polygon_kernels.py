@@ -124,6 +124,20 @@ def clip_groups_kernel(verts, A, c, group_off, tol, allow_drop):
     it an empty intersection ends the loop. Returns ``(vertices (m, 2), dropped (n_groups,)
     bool)``; the result is cleaned with :func:`clean_kernel` after each group.
     """
+    out, dropped, _ = clip_groups_count_kernel(verts, A, c, group_off, tol, allow_drop)
+    return out, dropped
+
+
+@njit(cache=True)
+def clip_groups_count_kernel(verts, A, c, group_off, tol, allow_drop):
+    """:func:`clip_groups_kernel` that also counts its vertex–halfspace tests.
+
+    Returns ``(vertices, dropped, n_tests)``; ``n_tests`` is the number of vertices of the input
+    list summed over every clipping halfspace applied (Sutherland–Hodgman's inner loop visits
+    each vertex of the current list once per halfspace: the ``O(N_E²)`` per pair of polygons of
+    POA-NBP §V-C2).
+    """
+    n_tests = 0
     n = verts.shape[0]
     n_groups = group_off.size - 1
     dropped = np.zeros(n_groups, dtype=np.bool_)
@@ -147,6 +161,7 @@ def clip_groups_kernel(verts, A, c, group_off, tol, allow_drop):
         for h in range(group_off[g], group_off[g + 1]):
             if tmp.shape[0] < 2 * m + 2:
                 tmp = np.empty((2 * m + 8, 2))
+            n_tests += m
             m = _clip_one(cur, m, A[h, 0], A[h, 1], c[h], tol, tmp)
             cur, tmp = tmp, cur
             if m == 0:
@@ -161,7 +176,7 @@ def clip_groups_kernel(verts, A, c, group_off, tol, allow_drop):
             m = m_keep
         else:
             m = clean_kernel(cur, m, tol)
-    return cur[:m].copy(), dropped
+    return cur[:m].copy(), dropped, n_tests
 
 
 # ---------------------------------------------------------------------------------------------

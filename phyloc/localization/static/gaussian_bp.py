@@ -303,7 +303,9 @@ def run_gaussian_bp(
         iteration and mean per agent update; ``diagnostics``: ``agent_time_s``
         [n_iterations, n_agents], ``converged_iteration`` (int or None), ``start``
         (``"prior"``, ``"mds"`` or ``"heuristic"``), ``setup_time_per_node_s`` (time per
-        agent of the start [s]; 0 for the prior and heuristic starts). Label ``"gbp"``.
+        agent of the start [s]; 0 for the prior and heuristic starts),
+        ``floats_per_link_iteration`` (5: the belief an agent sends a neighbour per
+        iteration, mean and symmetric covariance). Label ``"gbp"``.
 
     Examples
     --------
@@ -371,6 +373,8 @@ def run_gaussian_bp(
             "converged_iteration": convergence_iteration(out_m[:n_done], opt.convergence_tol_m),
             "start": start,
             "setup_time_per_node_s": setup_s,
+            # the belief sent per link and iteration: mean (2) and symmetric covariance (3)
+            "floats_per_link_iteration": 5.0,
         },
         label="gbp",
     )
@@ -523,7 +527,11 @@ def run_wls(
         ``estimates [n_iterations, n_agents, 2]`` (the iterate after each iteration, the start
         not included), no covariances; ``timing`` (joint mode: the joint time of an iteration
         divided by the number of agents is each agent's time); ``diagnostics`` as
-        :func:`run_gaussian_bp`. Label ``"wls.joint"`` / ``"wls.distributed"``.
+        :func:`run_gaussian_bp`, except ``floats_per_link_iteration``: NaN in ``"joint"`` mode
+        (centralized: the nodes exchange no messages; reported as NaN, not 0, so that it is
+        never averaged with the distributed methods), 2 in ``"distributed"`` mode (the
+        estimate an agent sends a neighbour per iteration). Label ``"wls.joint"`` /
+        ``"wls.distributed"``.
 
     Examples
     --------
@@ -615,6 +623,8 @@ def run_wls(
             "converged_iteration": convergence_iteration(out[:n_done], opt.convergence_tol_m),
             "start": start,
             "setup_time_per_node_s": setup_s,
+            # joint: centralized, no messages between nodes (NaN); distributed: the estimate
+            "floats_per_link_iteration": math.nan if opt.mode == "joint" else 2.0,
         },
         label=f"wls.{opt.mode}",
     )

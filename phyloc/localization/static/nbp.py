@@ -36,6 +36,20 @@ Jacobi schedule: every agent uses its neighbours' beliefs of iteration ``l − 1
      ε·U(region)``, the KDE of the agent's weighted samples of its last update with
      Silverman's bandwidth; while the belief is still the uniform prior the agent uses
      ``"mixture"`` instead;
+   - ``"auxiliary"`` (POA-NBP ref. [27], 'NBP aux.': "the proposal distribution is augmented
+     with an auxiliary variable [that] takes the messages from anchors into account"): for an
+     agent with at least one anchor neighbour, ``q(x) ∝ Π_{anchor a} p(ẑ_{a→j} | x, x_a)``
+     restricted to the region, sampled by auxiliary-variable importance resampling: draw
+     ``L·N_S`` candidates (``L = aux_oversampling``) from the equal mixture of the anchor
+     messages' KDEs — the auxiliary variable is the mixture component, then the candidate
+     index —, weight them by ``Π_a p(ẑ_a | x) / mixture(x)`` (zero outside the region) and
+     keep ``N_S`` by systematic resampling. In the weights the anchor terms cancel against
+     ``q``: the final weight is the product of the agent messages' KDEs times the prior.
+     Without an anchor neighbour the agent uses ``"mixture"`` (also when no candidate lands
+     in the anchors' support). This is *our interpretation*: the sampling details of
+     ref. [27] (V. Savic and S. Zazo, Ad Hoc Networks 11(1), 2013, where the auxiliary
+     variable enters the importance density as in an auxiliary particle filter) were not
+     available to us beyond the POA-NBP paper's one-sentence description;
    - ``"polygon"`` (POA-NBP eq. (21)): uniform in the agent's convex support region
      ``q = 1/A_p`` inside, 0 outside. The regions come from the prior
      (``StaticPrior.polygons``) or are computed by the method from the measurements
@@ -69,6 +83,23 @@ loaded 2-core machine): ≈ 3 / 5 / 10 / 24 ms per agent and iteration at N_S = 
 LSCV weigh as much as the quadratic KDE, which itself grows as N_S² (≈ 0.2 / 0.9 / 4.6 ms for
 10 messages at N_S = 100 / 200 / 400, 20–40× faster than the NumPy reference, depending on the
 load).
+
+**Communication and operation counts** (``Result.diagnostics``): every agent broadcasts its
+belief, ``N_S`` equally weighted (resampled) samples of 2 coordinates, once per iteration;
+the receiver forms the range message and chooses its bandwidth itself, so nothing else is sent:
+``floats_per_link_iteration = 2·N_S``. The support phase (POA, POA-NBP Algorithm 1, or the
+ellipses) exchanges its regions before NBP starts: ``support_floats_per_link_iteration``
+(POA: 2 per polygon vertex, :attr:`~phyloc.localization.static.polygons.POAResult.
+floats_per_link_iteration`; ellipses: 5, centre and symmetric shape matrix). The operations
+counted are the ones POA-NBP §II-B calls dominant, the Gaussian kernel evaluations of the
+message KDEs (POA-NBP eq. (7)) in the importance weights (POA-NBP eq. (8), ``O(|S_{→j}|·N_S²)``)
+and in the proposal densities (the mixture, parsimonious and auxiliary proposals evaluate
+KDEs at their samples or candidates): ``P·K`` for a KDE of ``K`` centres at ``P`` points
+(``kernel_evaluations``); not counted are the exact anchor likelihoods (``N_S`` per anchor
+link), the ``O(N_S)`` message filtering, the LSCV bandwidth search and the resampling.
+``operations_per_node`` adds the support's own count (POA:
+:attr:`~phyloc.localization.static.polygons.POAResult.operations_per_node`; ellipses: not
+counted, 0).
 
 Support regions: any object with ``.area`` [m²], ``.contains(points [n, 2]) -> bool [n]`` and
 ``.sample_uniform(n, rng) -> [n, 2]`` (e.g.
@@ -111,7 +142,7 @@ from phyloc.localization.static.static_ranges import (
 )
 
 #: Proposal distributions of :class:`NBPOptions`.
-PROPOSALS = ("min_entropy", "mixture", "parsimonious", "polygon")
+PROPOSALS = ("min_entropy", "mixture", "parsimonious", "polygon", "auxiliary")
 #: Bandwidth rules (or a float in metres).
 BANDWIDTH_RULES = ("lscv", "silverman")
 #: Support regions of the polygon proposal that NBP computes itself (:class:`NBPOptions`).
@@ -359,11 +390,16 @@ class Product:
         when ``ok`` is False.
     ok : bool
         At least one sample has a positive weight.
+    kernel_evaluations : int
+        Gaussian kernel evaluations of the message KDEs (POA-NBP eq. (7)) this product made:
+        ``P·K`` per KDE with ``K`` centres evaluated at ``P`` points — in the weights (POA-NBP
+        eq. (8)), in the proposal density and, for ``"auxiliary"``, at the candidates.
     """
 
     samples: np.ndarray
     log_weights: np.ndarray
     ok: bool
+    kernel_evaluations: int = 0
 
     @property
     def weights(self) -> np.ndarray:
@@ -391,12 +427,33 @@ def _product(
     polygon=None,
     previous=None,
     region_prior=True,
+    oversampling=4,
 ):
     """Core of :func:`message_product` (no validation)."""
     M = len(messages)
+    anchors = [i for i, m in enumerate(messages) if m.anchor is not None]
+    if proposal == "auxiliary" and not anchors:
+        proposal = "mixture"  # no anchor neighbour: nothing to build the auxiliary proposal on
     valid = None
+    n_kernel = 0
     need = list(range(M)) if proposal == "mixture" else []  # KDEs needed by the proposal
-    if proposal == "min_entropy":
+    if proposal == "auxiliary":
+        X, n_kernel = _auxiliary_samples(
+            [messages[i] for i in anchors], n, oversampling, rng, region, error_model
+        )
+        if X is None:  # no candidate inside the anchors' support: the mixture proposal instead
+            prod = _product(
+                messages,
+                n,
+                "mixture",
+                rng,
+                region,
+                uniform_fraction,
+                error_model,
+                region_prior=region_prior,
+            )
+            return dataclasses.replace(prod, kernel_evaluations=prod.kernel_evaluations + n_kernel)
+    elif proposal == "min_entropy":
         best = int(np.argmin([m.entropy_bound() for m in messages]))
         X = _sample_kde(messages[best], n, rng)
         need = [best]
@@ -437,18 +494,24 @@ def _product(
         h = np.array([messages[i].bandwidth for i in kde_idx])
         vals = _kde(X, centers, lw, h)
         logk = {i: vals[r] for r, i in enumerate(kde_idx)}
+        n_kernel += n * sum(messages[i].samples.shape[0] for i in kde_idx)
 
     log_t = np.zeros(n)
+    log_anchor = np.zeros(n)
     for i, m in enumerate(messages):
         if m.anchor is None:
             log_t += logk[i]
         else:
             pos, z = m.anchor
-            log_t += error_model.loglik(z, np.linalg.norm(X - pos, axis=1))
+            ll = error_model.loglik(z, np.linalg.norm(X - pos, axis=1))
+            log_t += ll
+            log_anchor += ll
 
     in_reg = _in_region(X, region)
     with np.errstate(divide="ignore"):
-        if proposal == "min_entropy":
+        if proposal == "auxiliary":  # q ∝ Π_anchors p(ẑ | x) on the region: anchor terms cancel
+            log_q = log_anchor
+        elif proposal == "min_entropy":
             log_q = logk[need[0]]
         elif proposal == "mixture":
             mix = logsumexp(np.stack([logk[i] for i in range(M)]), axis=0) - math.log(M)
@@ -468,6 +531,7 @@ def _product(
                     _normalized_log(previous.weights[None]),
                     np.array([previous.bandwidth]),
                 )[0]
+                n_kernel += n * previous.samples.shape[0]
                 log_q = np.logaddexp(
                     math.log1p(-eps) + prev if eps < 1 else -np.inf,
                     math.log(eps) + unif if eps > 0 else -np.inf,
@@ -479,10 +543,49 @@ def _product(
         ok_mask &= in_reg
     lw = np.full(n, -np.inf)
     if not ok_mask.any():
-        return Product(X, lw, False)
+        return Product(X, lw, False, n_kernel)
     raw = log_t[ok_mask] - log_q[ok_mask]
     lw[ok_mask] = raw - logsumexp(raw)
-    return Product(X, lw, True)
+    return Product(X, lw, True, n_kernel)
+
+
+def _auxiliary_samples(anchor_messages, n, oversampling, rng, region, error_model):
+    """Auxiliary-variable importance resampling of ``q(x) ∝ Π_a p(ẑ_a | x, x_a)`` on the region.
+
+    ``L·n`` candidates from the equal mixture of the anchor messages' KDEs (the auxiliary
+    variable is the component, then the candidate index), first-stage log weights
+    ``Σ_a log p(ẑ_a | x) − log mixture(x)`` (zero outside the region), ``n`` of them kept by
+    systematic resampling. Returns ``(samples [n, 2] or None, kernel evaluations)``; ``None``
+    when no candidate has a positive weight.
+    """
+    A = len(anchor_messages)
+    n_c = oversampling * n
+    counts = rng.multinomial(n_c, np.full(A, 1.0 / A))
+    C = np.vstack(
+        [_sample_kde(m, c, rng) for m, c in zip(anchor_messages, counts, strict=True) if c]
+    )
+    k_max = max(m.samples.shape[0] for m in anchor_messages)
+    centers = np.zeros((A, k_max, 2))
+    lw = np.full((A, k_max), -np.inf)
+    for r, m in enumerate(anchor_messages):
+        k = m.samples.shape[0]
+        centers[r, :k] = m.samples
+        lw[r, :k] = _normalized_log(m.weights)
+    h = np.array([m.bandwidth for m in anchor_messages])
+    log_mix = logsumexp(_kde(C, centers, lw, h), axis=0) - math.log(A)
+    n_kernel = n_c * sum(m.samples.shape[0] for m in anchor_messages)
+    log_prod = np.zeros(n_c)
+    for m in anchor_messages:
+        pos, z = m.anchor
+        log_prod += error_model.loglik(z, np.linalg.norm(C - pos, axis=1))
+    ok = _in_region(C, region) & np.isfinite(log_prod) & np.isfinite(log_mix)
+    if not ok.any():
+        return None, n_kernel
+    w1 = np.zeros(n_c)
+    raw = log_prod[ok] - log_mix[ok]
+    w1[ok] = np.exp(raw - logsumexp(raw))
+    idx = systematic_indices(w1 / w1.sum(), n, rng)
+    return C[idx], n_kernel
 
 
 def message_product(
@@ -497,6 +600,7 @@ def message_product(
     polygon=None,
     previous: Message | None = None,
     region_prior: bool = True,
+    oversampling: int = 4,
 ) -> Product:
     """Importance-sampled product of incoming messages (message multiplication, POA-NBP
     eqs. (6)–(9)).
@@ -510,7 +614,7 @@ def message_product(
         ``N_S``.
     region : (xmin, ymin, xmax, ymax)
         Support of the uniform prior and of the proposals' uniform parts.
-    proposal : {"min_entropy", "mixture", "parsimonious", "polygon"}
+    proposal : {"min_entropy", "mixture", "parsimonious", "polygon", "auxiliary"}
     uniform_fraction : float
         ``ε`` in [0, 1] of the mixture and parsimonious proposals.
     error_model : ExponentialRangeError or GaussianRangeError, optional
@@ -521,6 +625,8 @@ def message_product(
         Previous belief, for ``"parsimonious"`` (None: uniform over the region).
     region_prior : bool
         Zero weight outside ``region`` (uniform prior, POA-NBP §III-B).
+    oversampling : int
+        ``L >= 1``: candidates per sample of the ``"auxiliary"`` proposal (4).
 
     Returns
     -------
@@ -557,6 +663,7 @@ def message_product(
         _check_polygon(polygon)
     if not isinstance(rng, np.random.Generator):
         raise ValidationError("rng", rng, "a numpy.random.Generator is required")
+    oversampling = v.integer("oversampling", oversampling, minimum=1)
     return _product(
         msgs,
         n,
@@ -568,6 +675,7 @@ def message_product(
         polygon=polygon,
         previous=previous,
         region_prior=bool(region_prior),
+        oversampling=oversampling,
     )
 
 
@@ -584,7 +692,7 @@ class NBPOptions:
         ``N_S`` samples per belief and message (200).
     n_iterations : int
         ``N_iter`` message-passing iterations (10).
-    proposal : {"min_entropy", "mixture", "parsimonious", "polygon"}
+    proposal : {"min_entropy", "mixture", "parsimonious", "polygon", "auxiliary"}
         Importance-sampling proposal (module docstring). Default ``"mixture"``.
     support : {"none", "poa", "ellipse"}
         Support regions of the ``"polygon"`` proposal that the method computes from the
@@ -597,6 +705,8 @@ class NBPOptions:
         ``N_E >= 3`` and ``N_FS >= 1`` of the support (16, 2; POA-NBP §V-B).
     uniform_fraction : float
         ``ε`` of the mixture/parsimonious proposals, in [0, 1] (0.1).
+    aux_oversampling : int
+        ``L >= 1``: candidates per sample of the auxiliary proposal (4).
     bandwidth : {"lscv", "silverman"} or float
         Message KDE bandwidth rule or a fixed value [m] ("lscv").
     min_bandwidth_m : float
@@ -630,6 +740,7 @@ class NBPOptions:
     poa_n_edges: int = 16
     poa_n_fs: int = 2
     uniform_fraction: float = 0.1
+    aux_oversampling: int = 4
     bandwidth: str | float = "lscv"
     min_bandwidth_m: float = 0.01
     lscv_max_samples: int = 256
@@ -647,6 +758,7 @@ class NBPOptions:
             ("lscv_max_samples", 8),
             ("poa_n_edges", 3),
             ("poa_n_fs", 1),
+            ("aux_oversampling", 1),
         ):
             object.__setattr__(self, name, v.integer(name, getattr(self, name), minimum=lo))
         v.choice("proposal", self.proposal, PROPOSALS)
@@ -721,7 +833,12 @@ def _support(meas: StaticMeasurements, prior: StaticPrior, opt: NBPOptions, rng)
     """Support regions of the polygon proposal, their setup time per agent [s] and their
     diagnostics (see :func:`run_nbp`)."""
     if prior.polygons is not None:
-        return prior.polygons, prior.polygon_time_per_node_s, {"support": "prior"}
+        diag = {
+            "support": "prior",
+            "support_operations_per_node": prior.polygon_operations_per_node,
+            "support_floats_per_link_iteration": prior.polygon_floats_per_link_iteration,
+        }
+        return prior.polygons, prior.polygon_time_per_node_s, diag
     if opt.support == "poa":
         res = poa(
             meas.positions,
@@ -738,6 +855,8 @@ def _support(meas: StaticMeasurements, prior: StaticPrior, opt: NBPOptions, rng)
             "poa_area_m2": res.area_history,
             "poa_time_per_node_s": t,
             "poa_dropped": res.dropped,
+            "support_operations_per_node": res.operations_per_node,
+            "support_floats_per_link_iteration": res.floats_per_link_iteration,
         }
         return list(res.polygons), t, diag
     if opt.support == "ellipse":
@@ -750,7 +869,14 @@ def _support(meas: StaticMeasurements, prior: StaticPrior, opt: NBPOptions, rng)
             region=prior.region,
         )
         t = (time.perf_counter() - t0) / max(meas.n_agents, 1)
-        return ell.regions(), t, {"support": "ellipse", "ellipse_area_m2": ell.area_history}
+        diag = {
+            "support": "ellipse",
+            "ellipse_area_m2": ell.area_history,
+            "support_operations_per_node": 0.0,  # not counted
+            # centre (2) and symmetric shape matrix (3) per broadcast, N_FS - 1 broadcasts
+            "support_floats_per_link_iteration": 5.0 if opt.poa_n_fs > 1 else math.nan,
+        }
+        return ell.regions(), t, diag
     raise ValidationError(
         "polygons", None, "proposal='polygon' needs StaticPrior.polygons or a support option"
     )
@@ -800,6 +926,18 @@ def run_nbp(
             time per agent spent on the proposal support before the first iteration [s]
             (POA, ellipses, or ``prior.polygon_time_per_node_s``; 0 without support) — part of
             the time to convergence of POA-NBP Table I;
+        ``floats_per_link_iteration`` float
+            ``2·N_S``: floats an agent sends a neighbour per iteration (module docstring);
+        ``kernel_evaluations`` [n_iterations, n_agents] int
+            KDE kernel evaluations of each agent update (:attr:`Product.kernel_evaluations`);
+        ``kde_operations_per_node`` float
+            their sum over the iterations, mean over agents;
+        ``support_operations_per_node``, ``support_floats_per_link_iteration`` float
+            the support phase's operations per agent and floats per link and broadcast (0 and
+            NaN without a support; from the prior's ``polygon_operations_per_node`` and
+            ``polygon_floats_per_link_iteration`` with ``"prior"``);
+        ``operations_per_node`` float
+            ``kde_operations_per_node + support_operations_per_node``;
         ``support`` str
             ``"prior"``, ``"poa"``, ``"ellipse"`` or ``"none"``; with ``"poa"`` also
             ``poa_area_m2`` [N_FS, n_agents], ``poa_time_per_node_s``, ``poa_dropped``
@@ -824,7 +962,11 @@ def run_nbp(
     net = meas.network
     reg = prior.region
     model = meas.error_model
-    diag: dict = {"support": "none"}
+    diag: dict = {
+        "support": "none",
+        "support_operations_per_node": 0.0,
+        "support_floats_per_link_iteration": math.nan,
+    }
     setup_s = 0.0
     polygons = None
     if opt.proposal == "polygon":
@@ -854,6 +996,7 @@ def run_nbp(
     out_t = np.zeros((L, n_ag))
     step_t = np.zeros(L)
     out_ess = np.zeros((L, n_ag))
+    out_kernel = np.zeros((L, n_ag), dtype=np.int64)
     n_done = L
     for it in range(L):
         t_it = time.perf_counter()
@@ -894,7 +1037,9 @@ def run_nbp(
                     polygon=polys[a],
                     previous=prev,
                     region_prior=opt.region_prior,
+                    oversampling=opt.aux_oversampling,
                 )
+                out_kernel[it, a] = prod.kernel_evaluations
                 if prod.ok:
                     w = prod.weights
                     est_new[a] = w @ prod.samples
@@ -914,13 +1059,19 @@ def run_nbp(
         ):
             n_done = it + 1
             break
-    out_est, out_cov, out_t, out_ess = (
+    out_est, out_cov, out_t, out_ess, out_kernel = (
         out_est[:n_done],
         out_cov[:n_done],
         out_t[:n_done],
         out_ess[:n_done],
+        out_kernel[:n_done],
     )
+    kde_ops = float(out_kernel.sum(axis=0).mean()) if n_ag else 0.0
     diag.update(
+        floats_per_link_iteration=float(2 * ns),
+        kernel_evaluations=out_kernel,
+        kde_operations_per_node=kde_ops,
+        operations_per_node=kde_ops + float(diag["support_operations_per_node"]),
         ess=out_ess,
         agent_time_s=out_t,
         converged_iteration=convergence_iteration(

@@ -542,6 +542,21 @@ class POAResult:
         Iteration (1-based) in which each measurement was dropped.
     n_edges : int
         ``N_E`` of the anchor polygons.
+    operations : [n_iterations, n_agents], int
+        Operations counted for each agent in each iteration, the ones of the complexity
+        discussion of POA-NBP §V-C2: ``N_E`` per anchor polygon (Algorithm 2: one vertex, or
+        its halfspace, per edge), one halfspace shift (POA-NBP eqs. (19), (20)) per edge of every
+        neighbour polygon it scales (Algorithm 4; plus one vertex per edge where the scaled
+        polygon's vertices are needed, i.e. as the first subject of an unbounded agent), and
+        one vertex–halfspace test per vertex of the current list and clipping halfspace in
+        Sutherland–Hodgman (Algorithm 3, ``O(|S_{→j}|·N_E²)``). Clipping by ``region`` is
+        counted like any other clip. The support halfspaces each agent computes once from its
+        own polygon before broadcasting are not counted (the receiver's shifts are).
+    floats_per_link_iteration : float
+        Floats one agent sends one agent neighbour per broadcast of Algorithm 1 (line 13):
+        its polygon's vertices, 2 per vertex, averaged over the directed agent–agent links
+        and the ``N_FS − 1`` broadcast iterations (NaN without any broadcast: ``N_FS = 1`` or
+        no agent–agent link). Anchors send their position once (not counted).
     """
 
     agents: np.ndarray
@@ -551,6 +566,16 @@ class POAResult:
     dropped: np.ndarray
     dropped_iteration: np.ndarray
     n_edges: int
+    operations: np.ndarray | None = None
+    floats_per_link_iteration: float = math.nan
+
+    @property
+    def operations_per_node(self) -> float:
+        """Mean over agents of :attr:`operations` summed over the iterations (0 without
+        agents)."""
+        if self.operations is None or self.operations.shape[1] == 0:
+            return 0.0
+        return float(self.operations.sum(axis=0).mean())
 
     def polygon_of(self, node) -> ConvexPolygon | None:
         """Final polygon of the agent with node index ``node`` (``None`` = unbounded)."""
@@ -637,12 +662,13 @@ def _region(region) -> ConvexPolygon | None:
 
 
 def _clip(subject, groups_A, groups_c, tol):
-    """Clip ``subject`` by the halfspace groups with dropping; returns (vertices, dropped)."""
+    """Clip ``subject`` by the halfspace groups with dropping; returns (vertices, dropped,
+    vertex–halfspace tests)."""
     off = np.zeros(len(groups_A) + 1, dtype=np.int64)
     off[1:] = np.cumsum([a.shape[0] for a in groups_A])
     A = np.concatenate(groups_A) if groups_A else np.empty((0, 2))
     c = np.concatenate(groups_c) if groups_c else np.empty(0)
-    return K.clip_groups_kernel(subject, A, c, off, tol, True)
+    return K.clip_groups_count_kernel(subject, A, c, off, tol, True)
 
 
 _WARM = False
@@ -657,6 +683,7 @@ def _warmup() -> None:
     A, c, corner = K.support_halfspaces_kernel(sq, _PAPER_TURN)
     K.scaled_vertices_kernel(A, corner, 1.0, 1e-12)
     K.clip_groups_kernel(sq, A, c, np.array([0, 4], dtype=np.int64), 1e-12, True)
+    K.clip_groups_count_kernel(sq, A, c, np.array([0, 4], dtype=np.int64), 1e-12, True)
     K.mvee_kernel(sq, 1e-6, 10)
     _WARM = True
 
@@ -764,6 +791,8 @@ def poa(
     polys: list[np.ndarray | None] = [None] * agents.size
     areas = np.empty((n_iter, agents.size))
     times = np.zeros((n_iter, agents.size))
+    ops = np.zeros((n_iter, agents.size), dtype=np.int64)
+    sent_floats, sent_links = 0, 0
     dropped: list[tuple[int, int, int]] = []
     bad = set()
 
@@ -780,6 +809,7 @@ def poa(
                 bad.add((int(i), int(j)))
                 continue
             A, c = _anchor_halfspaces(pos[i], zz, n_edges, off)
+            ops[0, a] += n_edges  # Algorithm 2: one vertex (halfspace) per edge
             gA.append(A)
             gc.append(c)
             nb.append((int(i), zz, off))
@@ -792,7 +822,8 @@ def poa(
         else:
             subject = None
         if subject is not None:
-            out, drop = _clip(subject, gA, gc, tol)
+            out, drop, n_tests = _clip(subject, gA, gc, tol)
+            ops[0, a] += n_tests
             for g in np.flatnonzero(drop):
                 dropped.append((nb[g][0], int(j), 1))
                 bad.add((nb[g][0], int(j)))
@@ -814,6 +845,9 @@ def poa(
             gA, gc, nb = [], [], []
             for i in np.flatnonzero(link[j] & ~is_anchor):
                 s = support[slot[i]]
+                if s is not None:  # Algorithm 1 line 13: i broadcasts its vertices
+                    sent_floats += 2 * polys[slot[i]].shape[0]
+                    sent_links += 1
                 if s is None or (int(i), int(j)) in bad:
                     continue
                 zz = float(z[j, i])
@@ -822,15 +856,18 @@ def poa(
                     bad.add((int(i), int(j)))
                     continue
                 gA.append(s[0])
-                gc.append(s[1] + zz)
+                gc.append(s[1] + zz)  # one shift per halfspace, POA-NBP eqs. (19)-(20)
+                ops[it, a] += s[0].shape[0]
                 nb.append((int(i), zz))
             if gA:
                 subject = polys[a]
                 if subject is None:
                     s = support[slot[nb[0][0]]]
                     subject = K.scaled_vertices_kernel(s[0], s[2], nb[0][1], tol)
+                    ops[it, a] += s[0].shape[0]  # Algorithm 4 line 6: the scaled vertices
                     gA, gc, nb = gA[1:], gc[1:], nb[1:]
-                out, drop = _clip(subject, gA, gc, tol)
+                out, drop, n_tests = _clip(subject, gA, gc, tol)
+                ops[it, a] += n_tests
                 for g in np.flatnonzero(drop):
                     dropped.append((nb[g][0], int(j), it + 1))
                     bad.add((nb[g][0], int(j)))
@@ -847,6 +884,8 @@ def poa(
         dropped=np.array([(i, j) for i, j, _ in dropped], dtype=np.int64).reshape(-1, 2),
         dropped_iteration=np.array([it for _, _, it in dropped], dtype=np.int64),
         n_edges=n_edges,
+        operations=ops,
+        floats_per_link_iteration=sent_floats / sent_links if sent_links else math.nan,
     )
 
 
@@ -1109,7 +1148,7 @@ def ellipse_outer_approximation(
                 areas[it, a] = math.inf
                 continue
             subject = _halfspace_vertices(gA[0], gc[0], tol)
-            out, drop = _clip(subject, gA[1:], gc[1:], tol)
+            out, drop, _ = _clip(subject, gA[1:], gc[1:], tol)
             for g in np.flatnonzero(drop):
                 i = nb[g + 1][0]
                 if i >= 0:

@@ -468,6 +468,14 @@ class StaticPrior:
         computing its own support (``NBPOptions.support``).
     polygon_time_per_node_s : float
         Wall time per agent it took to compute ``polygons`` [s] (reported as the setup time).
+    polygon_operations_per_node : float
+        Operations per agent it took to compute ``polygons`` (e.g.
+        :attr:`~phyloc.localization.static.polygons.POAResult.operations_per_node`; 0: not
+        counted), reported with the method's operation count.
+    polygon_floats_per_link_iteration : float
+        Floats per link and iteration exchanged to compute ``polygons`` (e.g.
+        :attr:`~phyloc.localization.static.polygons.POAResult.floats_per_link_iteration`;
+        NaN: none or not known).
 
     Examples
     --------
@@ -479,6 +487,8 @@ class StaticPrior:
     initial: np.ndarray | None = None
     polygons: object = None
     polygon_time_per_node_s: float = 0.0
+    polygon_operations_per_node: float = 0.0
+    polygon_floats_per_link_iteration: float = math.nan
 
     def __post_init__(self):
         object.__setattr__(self, "region", check_region(self.region))
@@ -486,6 +496,20 @@ class StaticPrior:
             object.__setattr__(self, "initial", v.finite_array("initial", self.initial, ndim=2))
         t = v.positive("polygon_time_per_node_s", self.polygon_time_per_node_s, allow_zero=True)
         object.__setattr__(self, "polygon_time_per_node_s", t)
+        ops = v.positive(
+            "polygon_operations_per_node", self.polygon_operations_per_node, allow_zero=True
+        )
+        object.__setattr__(self, "polygon_operations_per_node", ops)
+        fl = self.polygon_floats_per_link_iteration
+        try:
+            fl = float(fl)
+        except (TypeError, ValueError):
+            raise ValidationError(
+                "polygon_floats_per_link_iteration", fl, "a number >= 0 or NaN"
+            ) from None
+        if fl < 0 or math.isinf(fl):
+            raise ValidationError("polygon_floats_per_link_iteration", fl, "a number >= 0 or NaN")
+        object.__setattr__(self, "polygon_floats_per_link_iteration", fl)
 
 
 def check_inputs(measurements, prior, rng=None, *, need_rng: bool = True):
