@@ -507,7 +507,8 @@ def cmd_evaluate(args) -> int:
     print(format_table(exp.summary_rows(res), headers))
     for line in getattr(exp, "summary_lines", lambda r: [])(res):
         print(line)
-    print(f"wrote {out / 'results.json'}, {png}")
+    extra = sorted(p for p in out.glob(f"{name}_*.png"))  # further figures of the experiment
+    print(f"wrote {', '.join(str(p) for p in [out / 'results.json', png, *extra])}")
     if args.json:
         write_json(args.json, res["figures"], res["meta"], res["series"], force=args.force)
         print(f"wrote {args.json}")
