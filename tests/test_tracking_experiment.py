@@ -284,3 +284,43 @@ def test_memory_study_grows_as_the_methods_store_particles(tmp_path, capsys):
     memory_png = out / "pfbp_memory_memory.png"
     assert memory_png.stat().st_size > 0
     assert str(memory_png) in capsys.readouterr().out
+
+
+def test_flow_example_moves_the_particles_to_the_crossing_the_cooperative_range_selects():
+    """PF-BP Fig. 1 (``flow_example``): each agent's two anchor rings cross twice (the map has
+    equal peaks at the truth and at the mirror crossing), the prior particles start about 2 m
+    off, and the flow, recorded one λ-step at a time, ends where the library's
+    :func:`edh_flow` over the whole schedule ends, within 0.5 m of both agents."""
+    from phyloc.evaluation.range_scenarios import flow_example
+    from phyloc.localization.tracking._flow import edh_flow, lambda_schedule, range_linearization
+
+    for seed in range(4):
+        ex = flow_example(np.random.default_rng(seed), n_lambda=20)
+        paths, truth = ex["paths"], ex["truth"]
+        assert paths.shape[0] == 21 and paths.shape[2:] == (2, 2)
+        assert np.all(np.linalg.norm(paths[0].mean(axis=0) - truth, axis=1) > 1.5)
+        assert np.all(np.linalg.norm(paths[-1].mean(axis=0) - truth, axis=1) < 0.5)
+        links = ex["links"]
+        off_a = 2 * links[:, 0]
+        off_b = np.array([-1] * 4 + [2])
+        anchor_pos = np.vstack([ex["anchors"][links[:4, 1]], [[0.0, 0.0]]])
+        lambdas, steps = lambda_schedule(20)
+        X1, _ = edh_flow(
+            paths[0].reshape(-1, 4),
+            ex["prior_mean"].reshape(-1),
+            np.eye(4) * 2.5**2,
+            lambda xb, a=off_a, b=off_b, p=anchor_pos: range_linearization(xb, a, b, p, 2),
+            ex["ranges_m"],
+            np.eye(5) * 0.01,
+            lambdas,
+            steps,
+        )
+        np.testing.assert_allclose(paths[-1].reshape(-1, 4), X1, rtol=1e-9, atol=1e-9)
+    g, maps = ex["grid_m"], ex["anchor_loglik"]
+
+    def at(agent, p):
+        return maps[agent, np.argmin(np.abs(g - p[0])), np.argmin(np.abs(g - p[1]))]
+
+    for agent, mirror in ((0, (4.0, -3.0)), (1, (10.83, 6.28))):
+        assert abs(at(agent, truth[agent]) - at(agent, mirror)) < 1.0  # two equal modes
+        assert at(agent, truth[agent]) - at(agent, (0.5 * 11, 11.0)) > 5.0  # and a valley

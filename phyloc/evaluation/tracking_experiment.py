@@ -88,7 +88,12 @@ Series: ``k`` (1 … K); ``<m>.<s>.rmse_p_m`` / ``rmse_v_m_s`` / ``rmse_a_m_s2``
 ``outage_threshold_m`` (log grid) with
 ``<m>.<s>.k<ko>.outage`` (outage probability versus threshold, Fig. 6) and
 ``<m>.<s>.error_cf`` (cumulative frequency of the position error over the whole trajectory,
-Fig. 4a, = 1 − outage over all steps).
+Fig. 4a, = 1 − outage over all steps). With PF-BP among the methods, ``flow_example.*``: the
+particle flow of two cooperating agents near three anchors (PF-BP Fig. 1,
+:func:`~phyloc.evaluation.range_scenarios.flow_example`), drawn as ``<recipe>_flow.png``.
+With ``memory_agents``, the memory study (:func:`memory_study`): figures
+``<m>.<s>.peak_rss_mb`` / ``run_rss_mb`` (and per size ``<m>.<s>.agents_<n>.*``), series
+``memory_agents`` and ``<m>.<s>.peak_rss_mb_by_agents``, drawn as ``<recipe>_memory.png``.
 
 Timings are wall times of this process; with several workers on a shared machine they include
 contention. Everything except the timings is identical for a seed whatever the worker count.
@@ -116,6 +121,7 @@ from phyloc.errors import ValidationError
 from phyloc.evaluation._common import experiment_from_dict
 from phyloc.evaluation.range_scenarios import (
     RangeScenario,
+    flow_example,
     network_states,
     scenario_network_spec,
     simulate_scenario,
@@ -644,6 +650,10 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         progress=progress,
     )
     figures, series = _aggregate(keys, results, exp)
+    if "pfbp" in bases.values():  # PF-BP Fig. 1: the flow of two cooperating agents
+        example = flow_example(np.random.default_rng(np.random.SeedSequence(recipe.seed)))
+        for key, value in example.items():
+            series[f"flow_example.{key}"] = value
     if exp.memory_agents:
         mem = memory_study(exp, options, bases, recipe.seed, progress=progress)
         figures.update(mem)
@@ -904,6 +914,49 @@ def plot(results: dict, path) -> None:
     fig.savefig(path, dpi=100)
     if "memory_agents" in ser:
         _plot_memory(results, Path(path).with_name(f"{Path(path).stem}_memory.png"))
+    if "flow_example.paths" in ser:
+        _plot_flow(results, Path(path).with_name(f"{Path(path).stem}_flow.png"))
+
+
+def _plot_flow(results: dict, path) -> None:
+    """PF-BP Fig. 1: particle paths of the flow (dash-dotted) over each agent's anchor
+    likelihood (colour map: two ring crossings each), anchors and their links."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    ser = results["series"]
+    g = np.asarray(ser["flow_example.grid_m"])
+    maps = np.asarray(ser["flow_example.anchor_loglik"])
+    paths = np.asarray(ser["flow_example.paths"])  # [λ-steps + 1, M, agent, xy]
+    anchors = np.asarray(ser["flow_example.anchors"])
+    truth = np.asarray(ser["flow_example.truth"])
+    fig = Figure(figsize=(5.6, 5.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    dens = np.exp(maps - maps.max(axis=(1, 2), keepdims=True)).sum(axis=0)
+    ax.pcolormesh(g, g, dens.T, cmap="viridis", shading="auto")
+    for a, k in np.asarray(ser["flow_example.links"]):
+        other = anchors[k] if k < 3 else truth[1]
+        ax.plot(*np.stack([truth[a], other]).T, color="0.6", lw=0.8, zorder=1)
+    for agent in range(2):
+        for m in range(paths.shape[1]):
+            ax.plot(*paths[:, m, agent].T, "-.", color="limegreen", lw=0.6, zorder=2)
+        ax.plot(*paths[0, :, agent].T, ".", color="white", ms=3, zorder=3)
+        ax.plot(*paths[-1, :, agent].T, ".", color="red", ms=3, zorder=4)
+    ax.plot(*anchors.T, "o", color="0.7", mec="k", ms=9, label="anchors", zorder=5)
+    ax.plot(*truth.T, "x", color="k", ms=9, mew=2, label="agents (truth)", zorder=6)
+    ax.set_xlim(g[0], g[-1])
+    ax.set_ylim(g[0], g[-1])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(fontsize=7, loc="upper right")
+    ax.set_title(
+        "PF-BP Fig. 1: particle flow of two cooperating agents\n"
+        "(white: prior particles, red: after the flow; colour: anchor likelihood)",
+        fontsize=8,
+    )
+    fig.savefig(path, dpi=100)
 
 
 def _plot_memory(results: dict, path) -> None:
