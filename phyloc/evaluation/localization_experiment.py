@@ -340,9 +340,10 @@ def _usable(tables, rspec, lspec):
     correlation peak's detection threshold); None when it is off."""
     if lspec.los_min_concentration <= 0:
         return None
+    corr = rspec.method_options("corr")
     kw = {"window_m": rspec.window_m}
-    if "noise_factor" in rspec.method_options("corr"):
-        kw["noise_factor"] = rspec.method_options("corr")["noise_factor"]
+    if "noise_factor" in corr:
+        kw["noise_factor"] = corr["noise_factor"]
     return tuple(energy_concentration(t, **kw) >= lspec.los_min_concentration for t in tables)
 
 

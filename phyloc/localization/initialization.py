@@ -714,7 +714,9 @@ def coarse_positions(
         shorter): the Cauchy reweighting then applies only to ranges longer than the fitted
         distance, and a shorter range keeps its full least-squares weight (cost ``(r/c)²``).
         With many NLOS ranges (a small network where every link is detected) this keeps the
-        biased ranges from folding the network around them. Default False (symmetric).
+        biased ranges from folding the network around them. The chosen configuration is then
+        polished by symmetric rounds at the finest scale (both sides agree within the noise).
+        Default False (symmetric).
 
     Returns
     -------
