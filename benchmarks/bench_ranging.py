@@ -7,7 +7,9 @@ the estimators' defaults (window 0–300 m; SAGE with L+1 = 5 paths and 10 sweep
 (names are the interface):
 
 ``ranging.table_links_per_s``            correlation tables built per second (the floor)
-``ranging.<m>.ranges_per_s``             ranges per second, m = corr, first_peak, sage
+``ranging.<m>.ranges_per_s``             ranges per second, m = corr, first_peak, sage (and
+                                         links judged per second for m = energy_concentration,
+                                         the NLOS identification of ``phyloc.ranging.nlos``)
 ``ranging.<m>.cost_over_table``          (1/ranges_per_s) / (1/table_links_per_s)
 ``ranging.sage.us_per_iteration``        µs per SAGE sweep (all L+1 paths) and link:
                                          (t(10 sweeps) − t(0 sweeps)) / (10 · links)
@@ -32,7 +34,14 @@ import numpy as np
 from phyloc.phy.bounds import zzb_range
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
-from phyloc.ranging import _kernels, correlation_peak, first_peak, ranging_variance, sage
+from phyloc.ranging import (
+    _kernels,
+    correlation_peak,
+    energy_concentration,
+    first_peak,
+    ranging_variance,
+    sage,
+)
 from phyloc.ranging.variance import clear_cache
 
 try:
@@ -44,7 +53,12 @@ except ImportError:  # run from the source tree by asv
     from benchmarks._timing import best_seconds
     from benchmarks.bench_phy import BETA, N_LINKS, N_PATHS, make_batch
 
-METHODS = {"corr": correlation_peak, "first_peak": first_peak, "sage": sage}
+METHODS = {
+    "corr": correlation_peak,
+    "first_peak": first_peak,
+    "sage": sage,
+    "energy_concentration": energy_concentration,  # the NLOS identification (per link)
+}
 SAGE_ITERATIONS = 10
 
 
