@@ -41,7 +41,9 @@ indoor localization."
 from __future__ import annotations
 
 import argparse
+import hashlib
 import importlib
+import shutil
 import sys
 import time
 from datetime import UTC
@@ -215,6 +217,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     e.add_argument("--no-progress", action="store_true", help="no progress bar")
     e.add_argument(
+        "--resume",
+        action="store_true",
+        help="finish an interrupted run in --out: the tasks it finished (kept in OUT/.tasks) "
+        "are read back, the others run",
+    )
+    e.add_argument(
         "--no-verify",
         action="store_true",
         help="evaluating a dataset: skip the SHA-256 check of its shard files before reading",
@@ -361,6 +369,8 @@ def main(argv=None) -> int:
         hint = ""
         if getattr(args, "func", None) is cmd_generate:
             hint = "; finished shards are kept: run the same command with --resume to finish it"
+        if getattr(args, "func", None) is cmd_evaluate:
+            hint = "; finished tasks are kept: run the same command with --resume to finish it"
         print(f"phyloc: interrupted{hint}", file=sys.stderr)
         return 130
 
@@ -441,6 +451,7 @@ def cmd_evaluate(args) -> int:
     from pathlib import Path
 
     from phyloc.config import load_recipe
+    from phyloc.parallel import TaskStore, TaskStoreMismatch, task_store
     from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
 
     if args.plugin:
@@ -467,10 +478,22 @@ def cmd_evaluate(args) -> int:
     out = Path(args.out or Path("results") / (name + ("-fast" if args.fast else "")))
     if out.exists() and not out.is_dir():
         raise ValidationError("--out", str(out), "is a file; give a results folder")
-    if out.exists() and any(out.iterdir()) and not args.force:
+    tasks_dir = out / ".tasks"
+    if args.resume and args.force:
+        raise ValidationError(
+            "--resume", "with --force", "--resume finishes a run, --force starts it over"
+        )
+    if args.resume and (out / "results.json").exists() and not tasks_dir.exists():
+        raise PhylocError(
+            f"--resume: the run in {out} is complete (results.json, no unfinished tasks); "
+            "pass --force to run it again"
+        )
+    if out.exists() and any(out.iterdir()) and not (args.force or args.resume):
         raise OutputExistsError(out)
     if args.json and Path(args.json).exists() and not args.force:
         raise OutputExistsError(args.json)
+    if args.force and tasks_dir.exists():
+        shutil.rmtree(tasks_dir)
     t0 = time.perf_counter()
     kw = {
         "fast": args.fast,
@@ -488,13 +511,36 @@ def cmd_evaluate(args) -> int:
             f"checked {checked['shards']} shard checksums ({checked['bytes'] / 1e6:.1f} MB) "
             f"in {verify_s:.2f} s (--no-verify skips this)"
         )
-    res = exp.run(recipe, **kw) if recipe is not None else exp.run_dataset(source, **kw)
     text = recipe.text if recipe is not None else _dataset_recipe_text(source)
+    identity = {
+        "recipe_sha256": hashlib.sha256(text.encode()).hexdigest(),
+        "source": source.name,
+        "fast": bool(args.fast),
+    }
+    try:
+        store = TaskStore(tasks_dir, identity, resume=args.resume)
+    except TaskStoreMismatch as exc:
+        raise PhylocError(
+            f"--resume: the unfinished run in {out} differs in {exc} (code: phyloc's sources "
+            "changed since it started; recipe_sha256/source/fast: another recipe or setting); "
+            "finish it with the code and recipe that started it, or start over with --force"
+        ) from None
+    with task_store(store):
+        res = exp.run(recipe, **kw) if recipe is not None else exp.run_dataset(source, **kw)
     wall = time.perf_counter() - t0
+    if store.invocations > 1:
+        print(
+            f"resumed: {store.reused} finished tasks read back from {tasks_dir}, "
+            f"{store.computed} run now (invocation {store.invocations})"
+        )
     res["meta"].update({"seconds": wall, "machine": machine_meta(), "recipe_text": text})
     # every run records its wall time and worker count among its figures
     res["figures"]["run.wall_s"] = wall
     res["figures"]["run.workers"] = 0 if args.scheduler else int(args.workers or 1)
+    if store.invocations > 1:  # a resumed run: its wall time over every invocation
+        res["figures"]["run.wall_s"] = wall + store.wall_before
+        res["figures"]["run.invocations"] = store.invocations
+        res["figures"]["run.tasks_reused"] = store.reused
     if verify_s is not None:
         res["figures"]["run.verify_s"] = verify_s
     out.mkdir(parents=True, exist_ok=True)
@@ -512,6 +558,7 @@ def cmd_evaluate(args) -> int:
     if args.json:
         write_json(args.json, res["figures"], res["meta"], res["series"], force=args.force)
         print(f"wrote {args.json}")
+    shutil.rmtree(tasks_dir)  # the run is complete: its results are in results.json
     return 0
 
 

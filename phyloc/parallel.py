@@ -10,6 +10,12 @@ which order they finish. :func:`run_tasks` runs ``fn(payload, seed_sequence)`` f
 
 Results come back in task order. A progress bar (tqdm) shows completed tasks.
 
+Inside :func:`task_store` every finished task's result is also kept on disk as it arrives, so
+an interrupted run (a full paper setting takes hours to days) resumes where it stopped: the
+tasks already done are read back instead of run again. The store is keyed by the run's inputs
+(task function, payloads, seed) and by a fingerprint of phyloc's source, so results computed
+by other code or for another recipe are never mixed in.
+
 Tasks are the unit of parallelism: each runs with its BLAS library limited to one thread
 (``threadpoolctl``). When several tasks run side by side, each also keeps its Numba kernels and
 FFTs to its share of the cores (:func:`threads_per_task`: ``max(1, cpus // workers)``), so
@@ -31,7 +37,12 @@ https://numpy.org/doc/stable/reference/random/parallel.html.
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import os
+import pickle
+import time
+from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -116,20 +127,35 @@ def run_tasks(
     payloads = list(payloads)
     seeds = task_seeds(seed, len(payloads))
     show = progress and not _quiet_progress()
-    if scheduler is None and (workers is None or v.integer("workers", workers, minimum=1) == 1):
+    serial = scheduler is None and (
+        workers is None or v.integer("workers", workers, minimum=1) == 1
+    )
+    store = _STORE.get(fn, payloads, seed) if _STORE is not None else _NoStore()
+    results = [store.load(i) for i in range(len(payloads))]
+    todo = [i for i, r in enumerate(results) if r is _MISSING]
+    if serial:
         fn = _OneBlasThread(fn)
-        out = []
-        for p, s in tqdm(
-            list(zip(payloads, seeds, strict=True)), desc=desc, disable=not show, leave=False
-        ):
-            out.append(fn(p, s))
-        return out
+        for i in tqdm(todo, desc=desc, disable=not show, leave=False):
+            results[i] = fn(payloads[i], seeds[i])
+            store.save(i, results[i])
+        return results
     # several tasks side by side: each keeps to its share of the cores (a remote cluster's
     # workers run one task per thread, so one thread each)
     fn = _OneBlasThread(fn, 1 if scheduler is not None else threads_per_task(workers))
-    return _run_dask(
-        fn, payloads, seeds, workers=workers, scheduler=scheduler, desc=desc, show=show
-    )
+    if todo:
+        done = _run_dask(
+            fn,
+            [payloads[i] for i in todo],
+            [seeds[i] for i in todo],
+            workers=workers,
+            scheduler=scheduler,
+            desc=desc,
+            show=show,
+            on_result=lambda j, r: store.save(todo[j], r),
+        )
+        for i, r in zip(todo, done, strict=True):
+            results[i] = r
+    return results
 
 
 #: Environment of embedded Dask workers. Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536``,
@@ -202,7 +228,7 @@ def connect(scheduler: str):
         ) from None
 
 
-def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show):
+def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show, on_result=None):
     from dask.distributed import as_completed
 
     with dask_client(workers=workers, scheduler=scheduler) as client:
@@ -211,7 +237,150 @@ def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show):
         results = [None] * len(futures)
         bar = tqdm(total=len(futures), desc=desc, disable=not show, leave=False)
         for fut in as_completed(futures):
-            results[index[fut.key]] = fut.result()
+            i = index[fut.key]
+            results[i] = fut.result()
+            if on_result is not None:
+                on_result(i, results[i])
             bar.update(1)
         bar.close()
         return results
+
+
+# -- resumable runs --------------------------------------------------------------------------
+_MISSING = object()
+
+
+class _NoStore:
+    def load(self, i):
+        return _MISSING
+
+    def save(self, i, result) -> None:
+        pass
+
+
+def source_fingerprint() -> str:
+    """SHA-256 over phyloc's Python sources (path and bytes of every ``.py`` file): two runs
+    with the same fingerprint ran the same code."""
+    root = Path(__file__).resolve().parent
+    h = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        h.update(path.relative_to(root).as_posix().encode() + b"\0")
+        h.update(path.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+class TaskStoreMismatch(Exception):
+    """The task store was written by another run (other code, recipe or setting)."""
+
+
+class TaskStore:
+    """Finished task results of one run, one file per task, in ``directory``.
+
+    ``directory/run.json`` names the run (its ``identity``: recipe text, setting, code
+    fingerprint) and accumulates its wall time over the invocations that worked on it. Each
+    :func:`run_tasks` call inside the run gets a subfolder keyed by its task function, payloads
+    and seed; task ``i``'s result is ``<key>/<i>.pkl``, written to a temporary name first and
+    renamed, so a killed process leaves either the whole result or none.
+
+    Results are pickles: read a store only from a run of your own.
+
+    Raises
+    ------
+    FileExistsError
+        ``directory`` holds a run and ``resume`` is false.
+    TaskStoreMismatch
+        ``resume`` is true but the stored run had another identity or ran other code (the
+        message names the fields that differ).
+    """
+
+    def __init__(self, directory, identity: dict, *, resume: bool):
+        self.dir = Path(directory)
+        self.identity = dict(identity, code=source_fingerprint())
+        self.reused = 0
+        self.computed = 0
+        self._t0 = time.perf_counter()
+        meta_path = self.dir / "run.json"
+        self.wall_before = 0.0
+        self.invocations = 1
+        if meta_path.exists():
+            if not resume:
+                raise FileExistsError(f"{self.dir} holds an unfinished run")
+            meta = json.loads(meta_path.read_text())
+            stored = meta.get("identity", {})
+            differs = sorted(
+                k for k in set(stored) | set(self.identity) if stored.get(k) != self.identity.get(k)
+            )
+            if differs:
+                raise TaskStoreMismatch(", ".join(differs))
+            self.wall_before = float(meta.get("wall_s", 0.0))
+            self.invocations = int(meta.get("invocations", 0)) + 1
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self._write_meta()
+
+    @property
+    def wall_s(self) -> float:
+        """Wall time of this run over all its invocations so far [s]."""
+        return self.wall_before + time.perf_counter() - self._t0
+
+    def _write_meta(self) -> None:
+        meta = {
+            "identity": self.identity,
+            "wall_s": self.wall_s,
+            "invocations": self.invocations,
+        }
+        tmp = self.dir / "run.json.tmp"
+        tmp.write_text(json.dumps(meta, indent=1))
+        os.replace(tmp, self.dir / "run.json")
+
+    def get(self, fn, payloads, seed) -> _CallStore:
+        """The store of one :func:`run_tasks` call."""
+        h = hashlib.sha256()
+        h.update(f"{getattr(fn, '__module__', '')}.{getattr(fn, '__qualname__', fn)}".encode())
+        h.update(str(int(seed)).encode())
+        h.update(pickle.dumps(payloads, protocol=5))
+        return _CallStore(self, self.dir / h.hexdigest()[:24])
+
+
+class _CallStore:
+    def __init__(self, run: TaskStore, directory: Path):
+        self.run = run
+        self.dir = directory
+
+    def load(self, i):
+        path = self.dir / f"{i}.pkl"
+        if not path.exists():
+            return _MISSING
+        try:
+            with open(path, "rb") as f:
+                result = pickle.load(f)
+        except (OSError, EOFError, pickle.UnpicklingError):  # damaged: run the task again
+            return _MISSING
+        self.run.reused += 1
+        return result
+
+    def save(self, i, result) -> None:
+        self.dir.mkdir(parents=True, exist_ok=True)
+        tmp = self.dir / f"{i}.pkl.tmp"
+        with open(tmp, "wb") as f:
+            pickle.dump(result, f, protocol=5)
+        os.replace(tmp, self.dir / f"{i}.pkl")
+        self.run.computed += 1
+        self.run._write_meta()
+
+
+_STORE: TaskStore | None = None
+
+
+@contextlib.contextmanager
+def task_store(store: TaskStore):
+    """Keep every finished task of the :func:`run_tasks` calls inside the block in ``store``
+    (a :class:`TaskStore`), reading back the ones already there."""
+    global _STORE
+    if _STORE is not None:
+        raise RuntimeError("task stores do not nest")
+    _STORE = store
+    try:
+        yield store
+    finally:
+        store._write_meta()
+        _STORE = None
