@@ -48,7 +48,7 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     K = meta["n_steps"]
     assert meta["scenarios"].keys() == {"s1_r18", "s1_rinf"}
     assert meta["methods"] == [
-        "pfbp", "pfbp_reg", "sirbp", "sirbp_reg", "sirbp_mil", "sirbp_mil_reg",
+        "pfbp", "pfbp_reg", "pfbp_cen", "sirbp", "sirbp_reg", "sirbp_mil", "sirbp_mil_reg",
         "spbp", "spbp_reg", "edh", "edh_reg",
     ]  # fmt: skip
     assert meta["options"]["sirbp"]["n_particles"] == 10_000  # [experiment.fast] override
@@ -162,6 +162,12 @@ def test_same_results_with_one_and_two_workers():
         (("[localization.edh]", "[localization.ed]"), False, "localization.ed"),
         (("runs = 2", "runs = 2\nmemory_agents = [5, 0]"), False, "experiment.memory_agents"),
         (("runs = 2", "runs = 2\nmemory_steps = 0"), False, "experiment.memory_steps"),
+        (("runs = 2", "runs = 2\nmethod_runs = { sirpb = 1 }"), False, "experiment.method_runs"),
+        (
+            ("runs = 2", "runs = 2\nmethod_runs = { sirbp = 0 }"),
+            False,
+            "experiment.method_runs.sirbp",
+        ),
         (
             ("[localization.pfbp]", "[experiment.fast]\nrun = 1\n\n[localization.pfbp]"),
             True,
@@ -324,3 +330,31 @@ def test_flow_example_moves_the_particles_to_the_crossing_the_cooperative_range_
     for agent, mirror in ((0, (4.0, -3.0)), (1, (10.83, 6.28))):
         assert abs(at(agent, truth[agent]) - at(agent, mirror)) < 1.0  # two equal modes
         assert at(agent, truth[agent]) - at(agent, (0.5 * 11, 11.0)) > 5.0  # and a valley
+
+
+def test_method_runs_limits_one_method_and_leaves_the_others_alone():
+    """``method_runs = { sirbp = 1 }`` in a 3-run recipe: SIR-BP's figures are those of a
+    1-run recipe (task streams do not depend on the number of runs), with the bounds of that
+    run; every other method's figures are those of the recipe without ``method_runs``."""
+    base = TINY.replace("runs = 2", "runs = 3")
+    limited = te.run(
+        load_recipe(base.replace("runs = 3", "runs = 3\nmethod_runs = { sirbp = 1 }")),
+        progress=False,
+    )
+    full = te.run(load_recipe(base), progress=False)
+    one = te.run(load_recipe(TINY.replace("runs = 2", "runs = 1")), progress=False)
+    f, g, h = limited["figures"], full["figures"], one["figures"]
+    assert f["sirbp.s1.runs"] == 1 and f["pfbp.s1.runs"] == g["sirbp.s1.runs"] == 3
+    assert limited["meta"]["method_runs"] == {"sirbp": 1}
+    checked = 0
+    for k, val in f.items():
+        if te.is_timing(k) or not k.startswith(("sirbp.", "pfbp.", "spbp.", "edh.")):
+            continue
+        ref = h[k] if k.startswith("sirbp.") else g[k]
+        assert val == pytest.approx(ref, rel=1e-12), k
+        checked += 1
+    assert checked > 40
+    # the limited method's ratio uses the bound of its own run, not of all three
+    assert f["sirbp.s1.k3.rmse_over_pcrlb_cond"] != pytest.approx(
+        f["sirbp.s1.k3.rmse_p_m"] / f["pcrlb_cond.s1.k3.p_m"], rel=1e-9
+    )

@@ -69,6 +69,9 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
     ``<m>.<s>.k<ko>.outage_<x>m``    fraction of (run, agent) position errors > x at step ko
                                      (Fig. 6)
     ``<m>.<s>.rmse_p_all_m``         position RMSE over the whole trajectory
+    ``<m>.<s>.runs``                 runs the method ran in (``runs``, or fewer by
+                                     ``experiment.method_runs``; its ratios then use the
+                                     bounds of those runs)
     ``<m>.<s>.step_s``               wall time per time step, joint processing [s] (Tables I, II):
                                      median over all steps of all runs
     ``<m>.<s>.agent_s``              ... per agent, distributed processing [s] (not for methods
@@ -177,6 +180,12 @@ class TrackingExperimentSpec:
         σ given to the trackers with ``"sage"`` measurements (see the module docstring).
     method_options : dict
         ``{method: {key: value}}`` overriding ``[localization.<method>]`` keys.
+    method_runs : dict
+        ``{method: n}``: run that method only in the first ``min(n, runs)`` runs of each
+        scenario (its figures are over those runs, ``<m>.<s>.runs`` says how many, and its
+        PCRLB ratios use the bounds of the same runs). For a method whose full setting would
+        dominate the wall time (SIR-BP with 10⁶ particles: ~10 min per run); the other methods
+        and every run's random streams are unchanged by it.
     memory_agents : tuple of int
         Network sizes of the memory study (:func:`memory_study`; default none: no study). Each
         method runs once per size in a fresh process and its peak resident set size is
@@ -210,6 +219,7 @@ class TrackingExperimentSpec:
     measurements: str = "gaussian"
     sage_sigma_m: float | str = "residual"
     method_options: dict = field(default_factory=dict)
+    method_runs: dict = field(default_factory=dict)
     memory_agents: tuple = ()
     memory_steps: int = 1
 
@@ -279,6 +289,16 @@ class TrackingExperimentSpec:
                 raise ValidationError(
                     "experiment.method_options", m, f"keys from {', '.join(methods)}"
                 )
+        if not isinstance(self.method_runs, dict):
+            raise ValidationError(
+                "experiment.method_runs", self.method_runs, "a table {method = runs}"
+            )
+        for m, n in self.method_runs.items():
+            if m not in methods:
+                raise ValidationError(
+                    "experiment.method_runs", m, f"keys from {', '.join(methods)}"
+                )
+            v.integer(f"experiment.method_runs.{m}", n, minimum=1)
         sizes = tuple(
             v.integer("experiment.memory_agents", n, minimum=1) for n in self.memory_agents
         )
@@ -463,7 +483,7 @@ def _residual_sigma(net, first, *, dim):
 
 def _task(payload, seed_seq):
     """One Monte Carlo run of one scenario: measurements, prior, every method."""
-    exp, scen, options, bases, extra = payload
+    exp, scen, options, bases, extra, run_index = payload
     streams = seed_seq.spawn(2 + len(exp.methods))
     rng = np.random.default_rng(streams[0])
     if exp.measurements == "gaussian":
@@ -482,6 +502,8 @@ def _task(payload, seed_seq):
     d = exp.dim
     out = {"scenario": sc, "prior_cov": prior.cov, "sage": info}
     for s, m in zip(streams[2:], exp.methods, strict=True):
+        if run_index >= exp.method_runs.get(m, exp.runs):
+            continue  # experiment.method_runs: this method runs in the first runs only
         res = METHODS[bases[m]].run(meas, prior, np.random.default_rng(s), options[m])
         for b, name in enumerate("pva"[: sc.model.order]):
             e = res.estimates[..., b * d : (b + 1) * d] - sc.states[..., b * d : (b + 1) * d]
@@ -638,7 +660,7 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
     payloads, keys = [], []
     for tok, scen in exp.scenarios.items():
         for r in range(exp.runs):
-            payloads.append((exp, scen, options, bases, extra))
+            payloads.append((exp, scen, options, bases, extra, r))
             keys.append((tok, r))
     results = run_tasks(
         _task,
@@ -669,6 +691,7 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         "seed": recipe.seed,
         "fast": fast,
         "runs": exp.runs,
+        "method_runs": {m: min(n, exp.runs) for m, n in exp.method_runs.items()},
         "n_steps": exp.n_steps,
         "scenarios": {t: dict(s) for t, s in exp.scenarios.items()},
         "methods": list(exp.methods),
@@ -722,19 +745,26 @@ def _aggregate(keys, results, exp):
             figures[f"sage.{tok}.sigma_m"] = float(np.mean([p["sage"]["sigma_m"] for p in parts]))
         for m in exp.methods:
             base = f"{m}.{tok}"
+            m_parts = [p for p in parts if f"{m}|e_p" in p]  # experiment.method_runs
+            figures[f"{base}.runs"] = len(m_parts)
+            m_bound, m_cond = bound, cond
+            if len(m_parts) < len(parts):  # the bounds of the runs this method ran
+                m_scs = [p["scenario"] for p in m_parts]
+                m_bound = pcrlb(m_scs, P0).bounds
+                m_cond = pcrlb(m_scs, P0, average="bound").bounds
             for b in blocks:
-                e = np.concatenate([p[f"{m}|e_{b}"] for p in parts], axis=1)  # [K, runs·agents]
+                e = np.concatenate([p[f"{m}|e_{b}"] for p in m_parts], axis=1)  # [K, runs·agents]
                 rmse = np.sqrt(np.mean(e**2, axis=1))
                 series[f"{base}.rmse_{_UNITS[b]}"] = rmse
                 for k in exp.report_steps:
                     figures[f"{base}.k{k}.rmse_{_UNITS[b]}"] = float(rmse[k - 1])
-            ep = np.concatenate([p[f"{m}|e_p"] for p in parts], axis=1)
+            ep = np.concatenate([p[f"{m}|e_p"] for p in m_parts], axis=1)
             for k in exp.report_steps:
                 figures[f"{base}.k{k}.rmse_over_pcrlb"] = float(
-                    figures[f"{base}.k{k}.rmse_p_m"] / bound["p"][k - 1]
+                    figures[f"{base}.k{k}.rmse_p_m"] / m_bound["p"][k - 1]
                 )
                 figures[f"{base}.k{k}.rmse_over_pcrlb_cond"] = float(
-                    figures[f"{base}.k{k}.rmse_p_m"] / cond["p"][k - 1]
+                    figures[f"{base}.k{k}.rmse_p_m"] / m_cond["p"][k - 1]
                 )
             figures[f"{base}.rmse_p_all_m"] = float(np.sqrt(np.mean(ep**2)))
             for k in exp.outage_steps:
@@ -744,12 +774,12 @@ def _aggregate(keys, results, exp):
                     figures[f"{base}.k{k}.outage_{_threshold_name(x)}"] = float(np.mean(ek > x))
             series[f"{base}.error_cf"] = np.mean(ep.reshape(-1)[:, None] <= OUTAGE_GRID_M, axis=0)
             figures[f"{base}.step_s"] = float(
-                np.median(np.concatenate([p[f"{m}|step_s"] for p in parts]))
+                np.median(np.concatenate([p[f"{m}|step_s"] for p in m_parts]))
             )
-            agent_s = np.concatenate([p[f"{m}|agent_s"] for p in parts])
+            agent_s = np.concatenate([p[f"{m}|agent_s"] for p in m_parts])
             if not np.all(np.isnan(agent_s)):  # NaN: no distributed form (edh)
                 figures[f"{base}.agent_s"] = float(np.median(agent_s))
-            floats = parts[0][f"{m}|floats"]
+            floats = m_parts[0][f"{m}|floats"]
             if not np.isnan(floats):  # NaN: exchanges no beliefs (edh)
                 figures[f"{base}.floats_per_link_iteration"] = floats
         if "sirbp" in exp.methods and "pfbp" in exp.methods:
