@@ -298,6 +298,7 @@ class TaskStore:
         self.identity = dict(identity, code=source_fingerprint())
         self.reused = 0
         self.computed = 0
+        self._calls: list[_CallStore] = []
         self._t0 = time.perf_counter()
         meta_path = self.dir / "run.json"
         self.wall_before = 0.0
@@ -327,6 +328,9 @@ class TaskStore:
             "identity": self.identity,
             "wall_s": self.wall_s,
             "invocations": self.invocations,
+            # progress of every run_tasks call so far: a long run in the background is
+            # followed with `cat OUT/.tasks/run.json`
+            "calls": {c.dir.name: {"tasks": c.n, "done": c.done} for c in self._calls},
         }
         tmp = self.dir / "run.json.tmp"
         tmp.write_text(json.dumps(meta, indent=1))
@@ -338,13 +342,18 @@ class TaskStore:
         h.update(f"{getattr(fn, '__module__', '')}.{getattr(fn, '__qualname__', fn)}".encode())
         h.update(str(int(seed)).encode())
         h.update(pickle.dumps(payloads, protocol=5))
-        return _CallStore(self, self.dir / h.hexdigest()[:24])
+        call = _CallStore(self, self.dir / h.hexdigest()[:24], len(payloads))
+        self._calls.append(call)
+        self._write_meta()
+        return call
 
 
 class _CallStore:
-    def __init__(self, run: TaskStore, directory: Path):
+    def __init__(self, run: TaskStore, directory: Path, n: int):
         self.run = run
         self.dir = directory
+        self.n = n
+        self.done = len(list(directory.glob("*.pkl"))) if directory.is_dir() else 0
 
     def load(self, i):
         path = self.dir / f"{i}.pkl"
@@ -364,6 +373,7 @@ class _CallStore:
         with open(tmp, "wb") as f:
             pickle.dump(result, f, protocol=5)
         os.replace(tmp, self.dir / f"{i}.pkl")
+        self.done += 1
         self.run.computed += 1
         self.run._write_meta()
 

@@ -46,6 +46,8 @@ def test_an_interrupted_run_resumes_to_the_uninterrupted_results(tmp_path, worke
         got = run_tasks(_draw, range(6), 5, workers=workers, progress=False)
     _same(got, ref)
     assert (store.reused, store.computed, store.invocations) == (3, 3, 2)
+    calls = json.loads((d / "run.json").read_text())["calls"]  # progress, for a user to read
+    assert calls == {partial.name: {"tasks": 6, "done": 6}}
     # a third invocation reads everything back and runs nothing
     store = TaskStore(d, ID, resume=True)
     with task_store(store):
