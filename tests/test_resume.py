@@ -148,6 +148,8 @@ def test_evaluate_resume_finishes_an_interrupted_run(tmp_path, capsys, monkeypat
     capsys.readouterr()
     assert main(["evaluate", str(recipe), "--out", str(out), "--resume"]) == 2
     assert "complete" in capsys.readouterr().err
+    assert main(["evaluate", str(recipe), "--out", str(out), "--resume", "--force"]) == 2
+    assert "--resume" in capsys.readouterr().err
     other = tmp_path / "other.toml"
     other.write_text(TINY.replace("seed = 1", "seed = 2"))
     monkeypatch.setattr(parallel._OneBlasThread, "__call__", interrupt_second)
