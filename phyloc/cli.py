@@ -517,6 +517,7 @@ def cmd_evaluate(args) -> int:
         "source": source.name,
         "fast": bool(args.fast),
     }
+    out_existed = out.exists()
     try:
         store = TaskStore(tasks_dir, identity, resume=args.resume)
     except TaskStoreMismatch as exc:
@@ -525,8 +526,15 @@ def cmd_evaluate(args) -> int:
             "changed since it started; recipe_sha256/source/fast: another recipe or setting); "
             "finish it with the code and recipe that started it, or start over with --force"
         ) from None
-    with task_store(store):
-        res = exp.run(recipe, **kw) if recipe is not None else exp.run_dataset(source, **kw)
+    try:
+        with task_store(store):
+            res = exp.run(recipe, **kw) if recipe is not None else exp.run_dataset(source, **kw)
+    except BaseException:
+        if store.invocations == 1 and store.computed == 0:  # nothing to resume: leave no trace
+            shutil.rmtree(tasks_dir, ignore_errors=True)
+            if not out_existed and not any(out.iterdir()):
+                out.rmdir()
+        raise
     wall = time.perf_counter() - t0
     if store.invocations > 1:
         print(

@@ -150,6 +150,13 @@ def test_evaluate_resume_finishes_an_interrupted_run(tmp_path, capsys, monkeypat
     assert "complete" in capsys.readouterr().err
     assert main(["evaluate", str(recipe), "--out", str(out), "--resume", "--force"]) == 2
     assert "--resume" in capsys.readouterr().err
+    # a run that fails before any task finished leaves nothing behind: a plain rerun works
+    monkeypatch.setattr(parallel._OneBlasThread, "__call__", interrupt_second)
+    calls[:] = [1]  # the next call is the second: the first task is interrupted
+    fresh = tmp_path / "fresh"
+    assert main(["evaluate", str(recipe), "--out", str(fresh)]) == 130
+    assert not fresh.exists()
+    monkeypatch.setattr(parallel._OneBlasThread, "__call__", real)
     other = tmp_path / "other.toml"
     other.write_text(TINY.replace("seed = 1", "seed = 2"))
     monkeypatch.setattr(parallel._OneBlasThread, "__call__", interrupt_second)
