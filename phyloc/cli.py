@@ -2,11 +2,12 @@
 
 Commands:
 
-* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|analysis|memory|all]
+* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|analysis|memory|sionna|all]
   [--quick] [--json PATH]``: run benchmarks; print cost per unit of work and ratios to references.
 * ``phyloc evaluate RECIPE|OUT.h5 [--fast] [--out DIR] [--json PATH]
-  [--workers N | --scheduler ADDR] [--plugin MODULE]``: run an experiment recipe, or localize
-  on a dataset's waveforms; write ``results.json``, the recipe and a PNG into DIR.
+  [--workers N | --scheduler ADDR] [--resume] [--plugin MODULE]``: run an experiment recipe,
+  or localize on a dataset's waveforms (``--resume`` finishes an interrupted run); write
+  ``results.json``, the recipe and a PNG into DIR.
   ``--plugin`` imports a module (name or ``.py`` path) that registers the user's own
   localization methods.
 * ``phyloc generate RECIPE -o OUT.h5 [--workers N | --scheduler ADDR] [--resume]``: generate an
@@ -62,6 +63,7 @@ BENCHMARKS = {
     "control": "phyloc.benchmarks.bench_control",
     "analysis": "phyloc.benchmarks.bench_analysis",
     "memory": "phyloc.benchmarks.bench_memory",
+    "sionna": "phyloc.benchmarks.bench_sionna",
 }
 
 

@@ -141,3 +141,31 @@ def test_numpy_twin_handles_all_empty():
         np.zeros((2, 5), complex),
     )
     np.testing.assert_array_equal(out, 0)
+
+
+def test_small_batches_take_the_serial_kernels_with_the_same_values(paper_system):
+    """Below SERIAL_BELOW links the synthesis and the noise run the serial twins of the
+    parallel kernels (the same code): a link's signal and noise do not depend on which path
+    computed them, and the one-thread FFT plan of a one-link table agrees with the batched
+    table."""
+    from phyloc.phy import synthesis
+    from phyloc.phy.correlation import correlation_tables
+
+    rng = np.random.default_rng(4)
+    S = qpsk_symbols(paper_system, 1, rng)
+    n = 2 * synthesis.SERIAL_BELOW
+    d = rng.uniform(5e-8, 4e-7, (n, 6))
+    g = 1e-6 * (rng.standard_normal((n, 6)) + 1j * rng.standard_normal((n, 6)))
+    paths = PathSet(d.ravel(), g.ravel(), np.arange(0, 6 * n + 1, 6))
+    big = synthesize(paths, S, paper_system, None)  # parallel kernel
+    for i in (0, 5, n - 1):
+        one = PathSet(d[i], g[i], np.array([0, 6]))
+        np.testing.assert_array_equal(synthesize(one, S, paper_system, None)[0], big[i])
+    few = synthesis.SERIAL_BELOW - 1
+    a = complex_noise((few, 257), 2.0, np.random.default_rng(9))  # serial
+    b = complex_noise((n, 257), 2.0, np.random.default_rng(9))  # parallel
+    np.testing.assert_array_equal(a, b[:few])
+    R = synthesize(paths, S, paper_system, np.random.default_rng(2))
+    full = correlation_tables(R, S, paper_system).values
+    single = correlation_tables(R[3:4], S, paper_system).values[0]
+    np.testing.assert_allclose(single, full[3], rtol=0, atol=1e-12 * np.abs(full[3]).max())

@@ -137,3 +137,9 @@ def normal_rows_kernel(seeds, scale, zx, zf, zk, out):
                 if ok:
                     break
             out[i, j] = -a * x if neg else a * x
+
+
+#: :func:`normal_rows_kernel` compiled without threads, for a few rows: starting the thread
+#: pool costs more than it saves there, and on a busy machine a parallel region waits for
+#: every thread (20–60× the median latency of one link). The same code, the same values.
+normal_rows_serial_kernel = njit(cache=True)(normal_rows_kernel.py_func)

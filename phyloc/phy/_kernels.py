@@ -102,6 +102,11 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
 # ---------------------------------------------------------------------------------------------
 # Lagrange interpolation on a periodic uniform grid
 # ---------------------------------------------------------------------------------------------
+#: :func:`synthesize_kernel` compiled without threads, for a few links (see
+#: :data:`phyloc.phy.synthesis.SERIAL_BELOW`); the same code, so the same values.
+synthesize_serial_kernel = njit(cache=True)(synthesize_kernel.py_func)
+
+
 @njit(cache=True, inline="always")
 def _wrap(j, L):
     if j < 0:

@@ -255,13 +255,20 @@ class BatchFFT:
             return out
 
 
+#: Batches of fewer rows than this get one-thread plans: a few transforms gain little from
+#: threads, and on a busy machine a multi-threaded plan waits for all of them.
+ONE_THREAD_BELOW = 4
+
+
 def batch_fft(batch: int, length: int) -> BatchFFT:
-    """A cached :class:`BatchFFT` for this shape (one plan per shape, backend and threads)."""
-    key = (batch, length, backend(), threads())
+    """A cached :class:`BatchFFT` for this shape (one plan per shape, backend and threads;
+    one thread for batches below :data:`ONE_THREAD_BELOW`)."""
+    n = 1 if batch < ONE_THREAD_BELOW else threads()
+    key = (batch, length, backend(), n)
     with _lock:
         plan = _plans.get(key)
         if plan is None:
-            plan = _plans[key] = BatchFFT(batch, length)
+            plan = _plans[key] = BatchFFT(batch, length, n_threads=n)
         return plan
 
 

@@ -28,6 +28,11 @@ from phyloc.phy.paths import PathSet
 from phyloc.phy.system import OFDMSystem
 from phyloc.phy.waveform import _check_rng, check_symbols
 
+#: Batches of fewer links (rows) than this run the serial kernels: one link's synthesis takes
+#: ~0.1 ms, less than waking a thread pool, and on a busy machine a parallel region waits for
+#: every thread. Rows are independent, so the values do not depend on the path taken.
+SERIAL_BELOW = 8
+
 
 def complex_noise(shape, noise_var, rng: np.random.Generator) -> np.ndarray:
     """Circularly-symmetric complex Gaussian noise ``CN(0, σ²)``.
@@ -66,9 +71,8 @@ def complex_noise(shape, noise_var, rng: np.random.Generator) -> np.ndarray:
         per_row = np.full(rows, float(scale))
     seeds = rng.integers(0, 2**64, size=rows, dtype=np.uint64, endpoint=False)
     z = np.empty((rows, 2 * shape[-1]))
-    _gauss.normal_rows_kernel(
-        seeds, np.ascontiguousarray(per_row, dtype=np.float64), ZIG_X, ZIG_F, ZIG_K, z
-    )
+    kernel = _gauss.normal_rows_serial_kernel if rows < SERIAL_BELOW else _gauss.normal_rows_kernel
+    kernel(seeds, np.ascontiguousarray(per_row, dtype=np.float64), ZIG_X, ZIG_F, ZIG_K, z)
     return z.view(np.complex128).reshape(shape)
 
 
@@ -148,7 +152,8 @@ def synthesize(
         noise = complex_noise((n_links, N), nv, rng)
     n_first = -float((N - 1) // 2)
     out = np.empty((n_links, N), dtype=np.complex128)
-    _kernels.synthesize_kernel(
-        S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, noise, out
+    kernel = (
+        _kernels.synthesize_serial_kernel if n_links < SERIAL_BELOW else _kernels.synthesize_kernel
     )
+    kernel(S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, noise, out)
     return out
