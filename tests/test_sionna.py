@@ -4,9 +4,11 @@ signal. Runs where Sionna is installed (``pip install "phyloc[sionna]"``), skipp
 import numpy as np
 import pytest
 
-from phyloc.benchmarks import bench_sionna
-from phyloc.cli import main
+from phyloc.cli import _import_benchmark, main
 from phyloc.phy.synthesis import synthesize
+
+# the installed package (phyloc.benchmarks) or, when phyloc is the working tree, ./benchmarks
+bench_sionna = _import_benchmark("phyloc.benchmarks.bench_sionna")
 
 
 def test_without_sionna_the_benchmark_says_how_to_install_it(monkeypatch, capsys):
