@@ -36,6 +36,7 @@ Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import tempfile
@@ -114,8 +115,9 @@ def next_fast_len(n: int) -> int:
     return _smooth_len(int(n))
 
 
+@functools.lru_cache(maxsize=256)
 def prev_fast_len(n: int) -> int:
-    """Largest 5-smooth length <= n (n >= 1)."""
+    """Largest 5-smooth length <= n (n >= 1); cached (a table of one link asks every time)."""
     m = int(n)
     while m > 1 and not _is_smooth(m):
         m -= 1
