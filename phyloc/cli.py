@@ -453,7 +453,7 @@ def cmd_evaluate(args) -> int:
     from pathlib import Path
 
     from phyloc.config import load_recipe
-    from phyloc.parallel import TaskStore, TaskStoreMismatch, task_store
+    from phyloc.parallel import TaskStore, TaskStoreBusy, TaskStoreMismatch, task_store
     from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
 
     if args.plugin:
@@ -527,6 +527,11 @@ def cmd_evaluate(args) -> int:
             f"--resume: the unfinished run in {out} differs in {exc} (code: phyloc's sources "
             "changed since it started; recipe_sha256/source/fast: another recipe or setting); "
             "finish it with the code and recipe that started it, or start over with --force"
+        ) from None
+    except TaskStoreBusy as exc:
+        raise PhylocError(
+            f"another phyloc evaluate is running into {out} ({exc}); wait for it, or stop it "
+            "and run this command again with --resume"
         ) from None
     try:
         with task_store(store):

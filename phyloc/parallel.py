@@ -273,6 +273,10 @@ class TaskStoreMismatch(Exception):
     """The task store was written by another run (other code, recipe or setting)."""
 
 
+class TaskStoreBusy(Exception):
+    """Another process is working on the task store (the message names its process id)."""
+
+
 class TaskStore:
     """Finished task results of one run, one file per task, in ``directory``.
 
@@ -303,8 +307,11 @@ class TaskStore:
         meta_path = self.dir / "run.json"
         self.wall_before = 0.0
         self.invocations = 1
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self._lock = _lock_dir(self.dir)  # one process per store: a second would redo work
         if meta_path.exists():
             if not resume:
+                self.close()
                 raise FileExistsError(f"{self.dir} holds an unfinished run")
             meta = json.loads(meta_path.read_text())
             stored = meta.get("identity", {})
@@ -312,11 +319,17 @@ class TaskStore:
                 k for k in set(stored) | set(self.identity) if stored.get(k) != self.identity.get(k)
             )
             if differs:
+                self.close()
                 raise TaskStoreMismatch(", ".join(differs))
             self.wall_before = float(meta.get("wall_s", 0.0))
             self.invocations = int(meta.get("invocations", 0)) + 1
-        self.dir.mkdir(parents=True, exist_ok=True)
         self._write_meta()
+
+    def close(self) -> None:
+        """Release the store's lock (another process may then resume it)."""
+        if self._lock is not None:
+            self._lock.close()
+            self._lock = None
 
     @property
     def wall_s(self) -> float:
@@ -378,6 +391,28 @@ class _CallStore:
         self.run._write_meta()
 
 
+def _lock_dir(directory: Path):
+    """An exclusive ``flock`` on ``directory/lock`` holding this process's id, or
+    :class:`TaskStoreBusy` naming the process that holds it (None where ``fcntl`` is absent)."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX
+        return None
+    f = open(directory / "lock", "a+")  # held open (and locked) for the run
+    try:
+        fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.seek(0)
+        pid = f.read().strip() or "?"
+        f.close()
+        raise TaskStoreBusy(f"process {pid} is working on {directory}") from None
+    f.seek(0)
+    f.truncate()
+    f.write(str(os.getpid()))
+    f.flush()
+    return f
+
+
 _STORE: TaskStore | None = None
 
 
@@ -393,4 +428,5 @@ def task_store(store: TaskStore):
         yield store
     finally:
         store._write_meta()
+        store.close()
         _STORE = None

@@ -7,7 +7,7 @@ import pytest
 
 from phyloc import parallel
 from phyloc.cli import main
-from phyloc.parallel import TaskStore, TaskStoreMismatch, run_tasks, task_store
+from phyloc.parallel import TaskStore, TaskStoreBusy, TaskStoreMismatch, run_tasks, task_store
 
 ID = {"recipe_sha256": "abc", "source": "r.toml", "fast": True}
 
@@ -66,6 +66,21 @@ def test_another_recipe_setting_or_code_is_refused(tmp_path, monkeypatch):
     monkeypatch.setattr(parallel, "source_fingerprint", lambda: "other code")
     with pytest.raises(TaskStoreMismatch, match="code"):
         TaskStore(d, ID, resume=True)
+
+
+def test_one_process_at_a_time_works_on_a_store(tmp_path):
+    """A second invocation on a store in use (the same long command started twice) is refused
+    with the process id of the first, and may resume once the first has stopped."""
+    import os
+
+    d = tmp_path / "tasks"
+    first = TaskStore(d, ID, resume=False)
+    with pytest.raises(TaskStoreBusy, match=str(os.getpid())):
+        TaskStore(d, ID, resume=True)
+    first.close()
+    second = TaskStore(d, ID, resume=True)
+    assert second.invocations == 2
+    second.close()
 
 
 def test_other_payloads_or_seed_do_not_read_stored_tasks(tmp_path):
