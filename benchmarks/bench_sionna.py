@@ -31,18 +31,17 @@ import time
 
 import numpy as np
 
-from phyloc.phy import C0, OFDMSystem, PathSet
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
-from phyloc.phy.waveform import qpsk_symbols
 
 try:
     from phyloc.benchmarks._timing import best_seconds
+    from phyloc.benchmarks.bench_phy import N_PATHS, make_batch  # the links of bench phy
 except ImportError:  # run from the source tree
     from benchmarks._timing import best_seconds
+    from benchmarks.bench_phy import N_PATHS, make_batch
 
 N_LINKS = 1024
-N_PATHS = 24
 INSTALL = (
     'Sionna is not installed: pip install "phyloc[sionna]" (Sionna 2.2 with the CPU build of '
     "PyTorch 2.13) to compare"
@@ -56,19 +55,6 @@ def available() -> bool:
     except ImportError:
         return False
     return True
-
-
-def make_batch(n_links=N_LINKS, n_paths=N_PATHS, seed=0):
-    """A seeded batch: the paper's system, one pilot row, ``n_paths`` paths per link."""
-    system = OFDMSystem()
-    rng = np.random.default_rng(seed)
-    S = qpsk_symbols(system, 1, rng)
-    total = n_links * n_paths
-    d = np.repeat(rng.uniform(5.0, 140.0, n_links), n_paths) / C0
-    delays = d + rng.exponential(50e-9, total)
-    gains = 1e-6 * (rng.standard_normal(total) + 1j * rng.standard_normal(total))
-    paths = PathSet(delays, gains, np.arange(0, total + 1, n_paths))
-    return system, S, paths, rng
 
 
 class SionnaLinks:
