@@ -131,28 +131,45 @@ def resample_regularize(X, lw, rng: np.random.Generator, regularize: bool):
     return X, np.full((n_agents, Q), -np.log(Q))
 
 
-def resample_permute(X, log_w, rng: np.random.Generator):
+def resample_permute(X, log_w, rng: np.random.Generator, jitter_cov=None):
     """Systematic resampling of a stacked set ``X [M, n]`` followed by a random permutation.
 
-    Non-finite weights fall back to uniform.
+    Non-finite weights fall back to uniform. With ``jitter_cov`` (``[n, n]``, Σ_r of PF-BP eq.
+    (32)) the resampled particles are regularized in the same pass: the result equals
+    ``regularize(resample_permute(X, log_w, rng), jitter_cov, rng)``, draw for draw.
     """
     M = X.shape[0]
     if not np.any(np.isfinite(log_w)):
         log_w = np.zeros(M)
     log_w = np.where(np.isfinite(log_w), log_w, -np.inf)
-    idx = systematic_resample(log_w, M, rng)
-    return np.take(X, rng.permutation(idx), axis=0)  # = X[perm], 3x faster for 10^6 rows
+    idx = rng.permutation(systematic_resample(log_w, M, rng))
+    if jitter_cov is None:
+        return np.take(X, idx, axis=0)  # = X[idx], 3x faster for 10^6 rows
+    return _gather_jitter(X, idx, jitter_cov, rng)
 
 
 def regularize(X, cov, rng: np.random.Generator):
     """Add ``N(0, diag Σ_r)`` to every particle of ``X [M, n]`` (PF-BP eq. (32)).
 
-    ``cov [n, n]``: only its diagonal is used, so it may be singular.
+    ``cov [n, n]``: only its diagonal is used, so it may be singular; normals are drawn only for
+    the components with a non-zero variance (``[M, n_jittered]``, row by row), the others are
+    copied.
     """
+    return _gather_jitter(X, np.arange(X.shape[0]), cov, rng)
+
+
+def _gather_jitter(X, idx, cov, rng):
     std = np.sqrt(np.diag(cov))
-    out = rng.standard_normal(X.shape)
-    out *= std
-    out += X  # X + N·std without temporaries (the same numbers)
+    cols = np.flatnonzero(std > 0.0)
+    out = np.take(X, idx, axis=0)
+    if cols.size == 0:
+        return out
+    W = rng.standard_normal((idx.size, cols.size))
+    W *= std[cols]
+    if cols[-1] - cols[0] == cols.size - 1:  # Σ_r of eq. (32) jitters one block: a view
+        out[:, cols[0] : cols[-1] + 1] += W
+    else:
+        out[:, cols] += W
     return out
 
 

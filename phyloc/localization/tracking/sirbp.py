@@ -34,6 +34,7 @@ from phyloc.errors import ValidationError
 from phyloc.localization.particles import regularize, resample_permute
 from phyloc.localization.results import Result, Timing
 from phyloc.localization.tracking import _flow
+from phyloc.localization.tracking import _kernels as _tk
 from phyloc.localization.tracking.range_models import (
     FACTORS,
     GaussianPrior,
@@ -162,16 +163,14 @@ def run_sirbp(
                     else:
                         y = chi_pos[other]  # belief of j at u − 1, PF-BP eqs. (17)–(19)
                     _flow.paired_range_loglik_kernel(pos0[i], y, float(zq), inv_var, lw)
-                xi = resample_permute(X0[i], lw, rng) if zz.size else X0[i]
-                if Sr is not None:
-                    xi = regularize(xi, Sr, rng)
-                new_chi[i] = xi
+                if zz.size:  # resampling, then the jitter of eq. (32) on the jittered block only
+                    new_chi[i] = resample_permute(X0[i], lw, rng, Sr)
+                else:
+                    new_chi[i] = X0[i] if Sr is None else regularize(X0[i], Sr, rng)
             chi = new_chi
             chi_pos = np.ascontiguousarray(chi[..., :dim])
         X = chi
-        out_mean[k] = X.mean(axis=1)
-        dev = X - out_mean[k][:, None, :]
-        out_cov[k] = dev.transpose(0, 2, 1) @ dev / M  # BLAS: 15x faster than einsum here
+        _tk.mean_cov_kernel(X, out_mean[k], out_cov[k])  # PF-BP eq. (20), no [M, N_D] temporary
         step_s[k] = time.perf_counter() - t0
     timing = Timing(
         time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
