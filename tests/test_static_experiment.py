@@ -192,10 +192,43 @@ def test_same_results_with_one_and_two_workers(tiny):
         np.testing.assert_array_equal(x, two["series"][n], err_msg=n)
 
 
+def test_sample_sweep_topologies_limits_the_sweep_only(tiny):
+    """``sample_sweep_topologies = 1`` in the 2-topology recipe: the sweep's figures are those
+    of a 1-topology run; every other figure is that of the unlimited recipe."""
+    limited = se.run(
+        load_recipe(TINY.replace("topologies = 2", "topologies = 2\nsample_sweep_topologies = 1")),
+        progress=False,
+    )
+    one = se.run(load_recipe(TINY.replace("topologies = 2", "topologies = 1")), progress=False)
+    f = limited["figures"]
+    swept = [n for n in f if n.startswith(("poa_nbp.ns20.", "poa_nbp.ns40."))]
+    assert "poa_nbp.ns20.mean_error_m" in swept
+    assert f["poa_nbp.ns20.topologies"] == 1.0 and tiny["figures"]["poa_nbp.ns20.topologies"] == 2
+    for n in f:
+        if se.is_timing(n) or n.endswith("topologies"):
+            continue
+        # N_S = 40 is also the comparison's: its overhead figures come from the comparison
+        from_sweep = n in swept and not (n.startswith("poa_nbp.ns40.") and n.endswith(_OVERHEAD))
+        assert f[n] == (one if from_sweep else tiny)["figures"][n], n
+    assert limited["meta"]["sample_sweep_topologies"] == 1
+    assert tiny["meta"]["sample_sweep_topologies"] == 2
+
+
+_OVERHEAD = (
+    "floats_per_link_iteration",
+    "operations_per_node",
+    "support_floats_per_link_iteration",
+)
+
+
 @pytest.mark.parametrize(
     ("edit", "key"),
     [
         (("topologies = 2", "topologis = 2"), "experiment.topologis"),
+        (
+            ("topologies = 2", "topologies = 2\nsample_sweep_topologies = 0"),
+            "experiment.sample_sweep_topologies",
+        ),
         (('"pbp", "wls"]', '"pbp", "lws"]'), "experiment.methods"),
         (('bandwidth = "silverman"', 'proposal = "mixture"'), "localization.nbp.proposal"),
         (('bandwidth = "silverman"', 'bandwith = "silverman"'), "localization.nbp.bandwith"),

@@ -102,6 +102,7 @@ with ``p`` for the decimal point)::
                                         (Fig. 11)
     ``<m>.ns<n>.mean_error_m``, ``<m>.ns<n>.outage_<x>m``, ``<m>.ns<n>.time_per_node_iteration_s``
                                         the sample sweep (Fig. 12)
+    ``<m>.ns<n>.topologies``            topologies the sweep ran in (``sample_sweep_topologies``)
     ``poa_nbp_vs_<m>.time_to_convergence_ratio``   ``poa_nbp`` over NBP variant ``<m>``
 
 Series: ``iteration``; ``<m>.mean_error_m`` per iteration; ``poa.ne<ne>.area_m2`` and
@@ -196,6 +197,11 @@ class StaticExperimentSpec:
     sample_methods : tuple of str
         Sample-based methods of the sweep (options with ``n_samples``; ``poa_nbp``,
         ``nbp_min_entropy``).
+    sample_sweep_topologies : int, optional
+        Run the sweep in the first this many topologies only (default: all). The sweep's cost
+        grows as N_S² (its N_S = 1600 point costs 64x the N_S = 200 methods), so the full
+        setting limits it; its figures say over how many topologies
+        (``<m>.ns<N_S>.topologies``), and every other figure and random stream is unchanged.
     outage_thresholds_m : tuple of float
         Thresholds of the scalar outage figures.
     convergence_rel, convergence_abs_m : float
@@ -227,6 +233,7 @@ class StaticExperimentSpec:
     n_samples: int = 200
     sample_sweep: tuple = (50, 100, 200, 400)
     sample_methods: tuple = ("poa_nbp", "nbp_min_entropy")
+    sample_sweep_topologies: int | None = None
     outage_thresholds_m: tuple = (0.5, 1.0, 2.0, 5.0)
     convergence_rel: float = 0.05
     convergence_abs_m: float = 0.02
@@ -265,6 +272,9 @@ class StaticExperimentSpec:
             if m not in sampled:
                 raise ValidationError(s + "sample_methods", m, f"each one of {', '.join(sampled)}")
         object.__setattr__(self, "sample_methods", tuple(self.sample_methods))
+        if self.sample_sweep_topologies is not None:
+            n = v.integer(s + "sample_sweep_topologies", self.sample_sweep_topologies, minimum=1)
+            object.__setattr__(self, "sample_sweep_topologies", min(n, self.topologies))
         thr = tuple(v.positive(s + "outage_thresholds_m", x) for x in self.outage_thresholds_m)
         object.__setattr__(self, "outage_thresholds_m", thr)
         if self.baseline_start not in BASELINE_STARTS:
@@ -274,6 +284,15 @@ class StaticExperimentSpec:
         rel = v.positive(s + "convergence_rel", self.convergence_rel)
         if rel >= 1:
             raise ValidationError(s + "convergence_rel", rel, "must be in (0, 1)")
+
+    @property
+    def sweep_topologies(self) -> int:
+        """Topologies the sample sweep runs in (the first ones)."""
+        return (
+            self.topologies
+            if self.sample_sweep_topologies is None
+            else self.sample_sweep_topologies
+        )
 
     @classmethod
     def from_dict(cls, d: dict, *, fast: bool = False) -> StaticExperimentSpec:
@@ -347,7 +366,7 @@ def _errors(res, truth_agents):
 
 def _task(payload, seed_seq):
     """One topology: scenario, polygon study, every method, the sample sweep."""
-    exp, localization = payload
+    exp, localization, index = payload
     streams = seed_seq.spawn(4 + len(exp.methods) + len(exp.sample_sweep) * len(exp.sample_methods))
     rng = np.random.default_rng(streams[0])
     sc = paper_static_scenario(
@@ -424,8 +443,8 @@ def _task(payload, seed_seq):
         out[f"{m}|time"] = float(np.mean(res.timing.agent_s))
         out[f"{m}|t_support"] = float(res.diagnostics.get("setup_time_per_node_s", 0.0))
         out[f"{m}|overhead"] = _overhead(res)
-    # 3. sample sweep (Fig. 12)
-    for m in exp.sample_methods:
+    # 3. sample sweep (Fig. 12), in the first experiment.sample_sweep_topologies topologies
+    for m in exp.sample_methods if index < exp.sweep_topologies else ():
         for ns in exp.sample_sweep:
             mrng = np.random.default_rng(streams[s])
             s += 1
@@ -486,7 +505,7 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
     exp, localization, opts = prepare(recipe, fast=fast)
     results = run_tasks(
         _task,
-        [(exp, localization)] * exp.topologies,
+        [(exp, localization, i) for i in range(exp.topologies)],
         recipe.seed,
         workers=workers,
         scheduler=scheduler,
@@ -506,6 +525,7 @@ def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, pro
         "n_edges": list(exp.n_edges),
         "sample_sweep": list(exp.sample_sweep),
         "sample_methods": list(exp.sample_methods),
+        "sample_sweep_topologies": exp.sweep_topologies,
         "outage_thresholds_m": list(exp.outage_thresholds_m),
         "experiment": dataclasses.asdict(exp),
         "options": {m: dataclasses.asdict(o) for m, o in opts.items()},
@@ -599,16 +619,18 @@ def _aggregate(results, exp: StaticExperimentSpec):
         _overhead_figures(figures, f"{m}.ns{exp.n_samples}", [r[f"{m}|overhead"] for r in results])
     for m in exp.sample_methods:
         for ns in exp.sample_sweep:
-            e = np.concatenate([r[f"{m}|ns{ns}|err"] for r in results])
+            swept = [r for r in results if f"{m}|ns{ns}|err" in r]  # sample_sweep_topologies
+            e = np.concatenate([r[f"{m}|ns{ns}|err"] for r in swept])
             base = f"{m}.ns{ns}"
+            figures[f"{base}.topologies"] = float(len(swept))
             figures[f"{base}.mean_error_m"] = float(e.mean())
             figures[f"{base}.time_per_node_iteration_s"] = float(
-                np.mean([r[f"{m}|ns{ns}|time"] for r in results])
+                np.mean([r[f"{m}|ns{ns}|time"] for r in swept])
             )
             series[f"{base}.outage"] = np.mean(e[:, None] > OUTAGE_GRID_M, axis=0)
             for x in exp.outage_thresholds_m:
                 figures[f"{base}.outage_{_threshold_name(x)}"] = float(np.mean(e > x))
-            _overhead_figures(figures, base, [r[f"{m}|ns{ns}|overhead"] for r in results])
+            _overhead_figures(figures, base, [r[f"{m}|ns{ns}|overhead"] for r in swept])
     if "poa_nbp" in exp.methods:  # POA-NBP Table I: POA-NBP against the other NBP variants
         for m in exp.methods:
             if m != "poa_nbp" and REGISTRY[m].options is REGISTRY["poa_nbp"].options:
