@@ -555,3 +555,33 @@ def test_correlation_peak_crb_dense(paper_system):
         rmse = math.sqrt(np.mean((est.range_m - d_true) ** 2))
         crb = crb_unit_pilots(amp**2 / paper_system.noise_power_w, 2569, 14.65e3)
         assert rmse == pytest.approx(math.sqrt(crb), rel=0.05)
+
+
+def test_pilots_equal_to_rounding_share_one_zzb_table(paper_system, monkeypatch):
+    """QPSK pilots e^{j(π/4 + kπ/2)} have |S_n|² of 1 or 1 + 4e-16 depending on the symbol, so
+    every transmitter's power spectrum differs in the last bit: all of them still share one
+    tabulated bound, which agrees with each row's own table within 1e-9 relative; a pilot of
+    another power gets its own."""
+    import phyloc.ranging.variance as var
+
+    S = qpsk_symbols(paper_system, 6, np.random.default_rng(3))
+    P = np.abs(S) ** 2
+    assert len({row.tobytes() for row in P}) == 6  # the rows differ by rounding
+    built = []
+    real = var._ZZBTable
+
+    def counting(power, *a):
+        built.append(power)
+        return real(power, *a)
+
+    monkeypatch.setattr(var, "_ZZBTable", counting)
+    clear_cache()
+    snr = np.geomspace(1e-4, 10.0, 6)
+    tab = correlation_tables(S, S, paper_system, tx_index=np.arange(6))
+    shared = ranging_variance(snr, tab)
+    assert len(built) == 1
+    for r in range(6):
+        own = real(P[r], paper_system, var.DEFAULT_PRIOR_RANGE_M, True)(snr[r : r + 1])
+        np.testing.assert_allclose(shared[r], own, rtol=1e-9)
+    ranging_variance(snr[:1], 2.0 * S[0], paper_system)
+    assert len(built) == 2
