@@ -17,12 +17,14 @@ from numba import njit, prange
 # ~1e-14 relative for any N.
 _LANES = 64
 _RESEED = 8 * _LANES  # must be a multiple of _LANES
+# links are split into at most this many chunks, each with its own scratch rows
+_CHUNKS = 64
 
 
 # ---------------------------------------------------------------------------------------------
 # Multipath synthesis:  R[i, k] = S[tx[i], k] · Σ_l α_l exp(−j ω n_k τ_l) + W[i, k]
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _synthesize_row(
     s_row, delays, gains, p0, P, omega, n_first, noise_row, out_row, ar, ai, lr, li
 ):
@@ -82,32 +84,31 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
     subcarriers, so rounding stays ~1e-14 relative for any N.
     """
     n_links, N = out.shape
-    for i in prange(n_links):
+    n_chunks = min(n_links, _CHUNKS)
+    for c in prange(n_chunks):  # scratch once per chunk of links, not per link
         ar = np.empty(N)
         ai = np.empty(N)
         lr = np.empty(_LANES)
         li = np.empty(_LANES)
-        p0 = offsets[i]
-        _synthesize_row(
-            symbols[tx_index[i]],
-            delays,
-            gains,
-            p0,
-            offsets[i + 1] - p0,
-            omega,
-            n_first,
-            noise[i],
-            out[i],
-            ar,
-            ai,
-            lr,
-            li,
-        )
+        for i in range(c * n_links // n_chunks, (c + 1) * n_links // n_chunks):
+            p0 = offsets[i]
+            _synthesize_row(
+                symbols[tx_index[i]],
+                delays,
+                gains,
+                p0,
+                offsets[i + 1] - p0,
+                omega,
+                n_first,
+                noise[i],
+                out[i],
+                ar,
+                ai,
+                lr,
+                li,
+            )
 
 
-# ---------------------------------------------------------------------------------------------
-# Lagrange interpolation on a periodic uniform grid
-# ---------------------------------------------------------------------------------------------
 #: :func:`synthesize_kernel` compiled without threads, for a few links (see
 #: :data:`phyloc.phy.synthesis.SERIAL_BELOW`); the same code, so the same values.
 synthesize_serial_kernel = njit(cache=True)(synthesize_kernel.py_func)
