@@ -166,7 +166,7 @@ def _gather_jitter(X, idx, cov, rng):
         return out
     W = rng.standard_normal((idx.size, cols.size))
     W *= std[cols]
-    if cols[-1] - cols[0] == cols.size - 1:  # Σ_r of eq. (32) jitters one block: a view
+    if cols[-1] - cols[0] == cols.size - 1:  # Σ_r of PF-BP eq. (32) jitters one block: a view
         out[:, cols[0] : cols[-1] + 1] += W
     else:
         out[:, cols] += W

@@ -111,21 +111,25 @@ class _ZZBTable:
         return out
 
 
-def _power_key(power) -> str:
-    """A key of a pilot power spectrum ``|S_n|²`` that ignores rounding: each bin to 7 digits
-    relative to the largest, and the largest to 7 significant digits. QPSK pilots
-    ``e^{j(π/4 + kπ/2)}`` have ``|S_n|²`` of 1 or 1 + 4e-16 depending on the symbol; without
-    this every transmitter got its own ZZB table (140 ms each: 31 tables, half the time of a
-    30-agent C2 realization), although the bounds differ in the last bits."""
+def _canonical_power(power) -> tuple[str, np.ndarray]:
+    """A key of a pilot power spectrum ``|S_n|²`` that ignores rounding, and the spectrum the
+    key stands for: each bin to 7 digits relative to the largest, the largest to 7 significant
+    digits. QPSK pilots ``e^{j(π/4 + kπ/2)}`` have ``|S_n|²`` of 1 or 1 + 4e-16 depending on the
+    symbol; without this every transmitter got its own ZZB table (140 ms each: 31 tables, half
+    the time of a 30-agent C2 realization), although the bounds differ in the last bits. The
+    table is computed from the canonical spectrum, so it does not depend on which transmitter
+    (or which task of a worker) asked first."""
     P = np.ascontiguousarray(power, dtype=np.float64)
-    top = float(P.max()) if P.size else 0.0
-    rel = np.round(P / top, 7) if top > 0 else P
-    return f"{top:.7g}:" + hashlib.sha1(rel.tobytes()).hexdigest()
+    top = float(f"{float(P.max()):.7g}") if P.size else 0.0
+    rel = np.round(P / top, 7) if top > 0 else P.copy()
+    key = f"{top!r}:" + hashlib.sha1(rel.tobytes()).hexdigest()
+    return key, (rel * top if top > 0 else rel)
 
 
 def _zzb_table(power, system, prior_range_m, valley_filling) -> _ZZBTable:
+    pkey, power = _canonical_power(power)
     key = (
-        _power_key(power),
+        pkey,
         system,
         float(prior_range_m),
         bool(valley_filling),
@@ -227,12 +231,12 @@ def ranging_variance(
         power_rows = np.abs(S) ** 2
         rows = np.zeros(s.shape, np.int64)
     out = np.empty(s.shape)
-    # links whose pilots have the same power spectrum (to rounding, :func:`_power_key`) share
-    # one bound (QPSK: all of them), computed from the first such row
+    # links whose pilots have the same power spectrum (to rounding, :func:`_canonical_power`)
+    # share one bound (QPSK: all of them), computed from the canonical spectrum
     firsts: dict[str, int] = {}
     row_group = np.empty(power_rows.shape[0], dtype=np.int64)
     for r in range(power_rows.shape[0]):
-        row_group[r] = firsts.setdefault(_power_key(power_rows[r]), len(firsts))
+        row_group[r] = firsts.setdefault(_canonical_power(power_rows[r])[0], len(firsts))
     first = [int(np.argmax(row_group == g)) for g in range(len(firsts))]
     group = row_group[rows]
     for g, r in enumerate(first):

@@ -163,7 +163,7 @@ def run_sirbp(
                     else:
                         y = chi_pos[other]  # belief of j at u − 1, PF-BP eqs. (17)–(19)
                     _flow.paired_range_loglik_kernel(pos0[i], y, float(zq), inv_var, lw)
-                if zz.size:  # resampling, then the jitter of eq. (32) on the jittered block only
+                if zz.size:  # resampling, then the jitter of PF-BP eq. (32), jittered block only
                     new_chi[i] = resample_permute(X0[i], lw, rng, Sr)
                 else:
                     new_chi[i] = X0[i] if Sr is None else regularize(X0[i], Sr, rng)
