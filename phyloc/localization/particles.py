@@ -135,7 +135,7 @@ def resample_permute(X, log_w, rng: np.random.Generator, jitter_cov=None):
     """Systematic resampling of a stacked set ``X [M, n]`` followed by a random permutation.
 
     Non-finite weights fall back to uniform. With ``jitter_cov`` (``[n, n]``, Σ_r of PF-BP eq.
-    (32)) the resampled particles are regularized in the same pass: the result equals
+    (32)) the resampled particles are regularized in the same call: the result equals
     ``regularize(resample_permute(X, log_w, rng), jitter_cov, rng)``, draw for draw.
     """
     M = X.shape[0]

@@ -114,6 +114,9 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
 synthesize_serial_kernel = njit(cache=True)(synthesize_kernel.py_func)
 
 
+# ---------------------------------------------------------------------------------------------
+# Lagrange interpolation on a periodic uniform grid
+# ---------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _wrap(j, L):
     if j < 0:
