@@ -65,12 +65,18 @@ def finite_array(name: str, a, *, dtype=np.float64, ndim: int | None = None) -> 
         raise ValidationError(name, "<array>", f"must convert to {np.dtype(dtype).name}") from None
     if ndim is not None and arr.ndim != ndim:
         raise ValidationError(name, f"array of shape {arr.shape}", f"must be {ndim}-D")
-    if not np.all(np.isfinite(arr)):
+    check_finite(name, arr)
+    return arr
+
+
+def check_finite(name: str, arr: np.ndarray) -> None:
+    """Raise naming the first non-finite entry of the C-contiguous ``arr`` (if there is one)."""
+    flat = arr.view(np.float64) if arr.dtype == np.complex128 and arr.ndim else arr
+    if not np.all(np.isfinite(flat)):  # complex128 through its float view: 2x faster
         bad = int(np.flatnonzero(~np.isfinite(arr.ravel()))[0])
         raise ValidationError(
             name, f"{arr.ravel()[bad]} at flat index {bad}", "every entry must be finite"
         )
-    return arr
 
 
 def choice(name: str, value, allowed) -> str:

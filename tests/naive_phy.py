@@ -23,6 +23,18 @@ def synthesize_numpy(symbols, tx_index, delays, gains, offsets, omega, n_first, 
     return symbols[tx_index] * H + noise
 
 
+def spectrum_numpy(R, symbols, tx_index):
+    """Plain-NumPy twin of :func:`phyloc.phy._kernels.spectrum_kernel`: ``(spectrum, finite)``."""
+    return np.conj(R.astype(np.complex128)) * symbols[tx_index], bool(np.all(np.isfinite(R)))
+
+
+def symbol_moments_numpy(symbols, n_first):
+    """Plain-NumPy twin of :func:`phyloc.phy._kernels.symbol_moments_kernel`."""
+    p = np.abs(symbols) ** 2
+    n = n_first + np.arange(symbols.shape[1], dtype=np.float64)
+    return p.sum(axis=1), (p * n**2).sum(axis=1)
+
+
 def interp_numpy(values, rows, x, order):
     """Plain-NumPy twin of :func:`phyloc.phy._kernels.interp_kernel`."""
     L = values.shape[1]

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 import pytest
-from naive_phy import interp_numpy, refine_peaks_numpy
+from naive_phy import interp_numpy, refine_peaks_numpy, spectrum_numpy, symbol_moments_numpy
 
 from naive import C0, cross_correlation, lagrange
 from phyloc.errors import ValidationError
@@ -231,3 +231,67 @@ def test_peak_estimate_attains_the_crb_across_snr_dense(paper_system):
         tab = correlation_tables(synthesize(paths, S, paper_system, rng), S, paper_system)
         rmse = math.sqrt(np.mean((tab.peak(window_m=(0.0, 200.0)) - d_true) ** 2))
         assert rmse == pytest.approx(math.sqrt(crb_range(snr, S[0], paper_system)), rel=0.05)
+
+
+@pytest.mark.parametrize("dtype", [np.complex128, np.complex64])
+@pytest.mark.parametrize("n_links", [3, 40])
+def test_spectrum_kernel_equals_numpy_twin_and_flags_non_finite(rng, dtype, n_links):
+    """c = R* S[tx] of eq. (23) in one pass: NumPy's product to the last bit or two (NumPy may
+    fuse multiply-adds), serial bit-equal to parallel, and any NaN or ±inf in a real or
+    imaginary part is reported."""
+    N = 257
+    S = rng.standard_normal((3, N)) + 1j * rng.standard_normal((3, N))
+    R = (rng.standard_normal((n_links, N)) + 1j * rng.standard_normal((n_links, N))).astype(dtype)
+    tx = rng.integers(0, 3, n_links)
+    ref, ok = spectrum_numpy(R, S, tx)
+    assert ok
+    outs = []
+    for kernel in (K.spectrum_kernel, K.spectrum_serial_kernel):
+        outs.append(np.empty((n_links, N), np.complex128))
+        assert kernel(R, S, tx, outs[-1])
+        np.testing.assert_allclose(outs[-1], ref, rtol=1e-15)
+    np.testing.assert_array_equal(outs[0], outs[1])
+    for bad in (np.nan, np.inf, -np.inf):
+        for part in (1.0, 1j):
+            Rb = R.copy()
+            Rb[n_links - 1, N // 2] = bad * part if part == 1.0 else complex(0.0, bad)
+            out = np.empty((n_links, N), np.complex128)
+            assert not K.spectrum_kernel(Rb, S, tx, out)
+            assert not K.spectrum_serial_kernel(Rb, S, tx, out)
+
+
+def test_symbol_moments_kernel_equals_numpy_twin(rng):
+    S = rng.standard_normal((4, 2569)) + 1j * rng.standard_normal((4, 2569))
+    energy, moment2 = np.empty(4), np.empty(4)
+    K.symbol_moments_kernel(S, -1284.0, energy, moment2)
+    e_ref, m_ref = symbol_moments_numpy(S, -1284.0)
+    np.testing.assert_allclose(energy, e_ref, rtol=1e-13)
+    np.testing.assert_allclose(moment2, m_ref, rtol=1e-13)
+
+
+def test_tables_reject_non_finite_received_symbols_naming_the_entry(paper_system, rng):
+    S = qpsk_symbols(paper_system, 1, rng)
+    R = synthesize(PathSet.single_path([1e-7, 2e-7], [1e-6, 1e-6]), S, paper_system, rng)
+    R[1, 5] = complex(0.0, np.inf)
+    with pytest.raises(ValidationError, match=r"R = .*inf.* at flat index 2574"):
+        correlation_tables(R, S, paper_system)
+    R[1, 5] = 0.0
+    tab32 = correlation_tables(R.astype(np.complex64), S, paper_system)
+    ref = correlation_tables(R.astype(np.complex64).astype(np.complex128), S, paper_system)
+    np.testing.assert_array_equal(tab32.values, ref.values)  # complex64 read as it is
+
+
+def test_tables_written_into_a_callers_array_equal_fresh_ones(rng):
+    """``out=`` reuses the caller's memory: same values as a fresh table (also when the last
+    FFT chunk is partial), the table holds that array, and a wrong array is refused by name."""
+    sysm = OFDMSystem(n_subcarriers=65)
+    S, R, fresh = multipath_table(rng, sysm, n_links=5, beta=4.0)
+    buf = phyfft.aligned_empty((5, fresh.n_fft))
+    buf[...] = np.nan  # stale contents of an earlier batch must not survive
+    tab = correlation_tables(R, S, sysm, beta=4.0, chunk=2, out=buf)
+    assert tab.values is buf
+    np.testing.assert_array_equal(tab.values, fresh.values)
+    strided = np.zeros((5, 2 * fresh.n_fft), np.complex128)[:, ::2]
+    for bad in (buf[:4], buf.astype(np.complex64), strided, np.zeros(5)):
+        with pytest.raises(ValidationError, match=r"^out = "):
+            correlation_tables(R, S, sysm, beta=4.0, out=bad)

@@ -19,6 +19,10 @@ _LANES = 64
 _RESEED = 8 * _LANES  # must be a multiple of _LANES
 # links are split into at most this many chunks, each with its own scratch rows
 _CHUNKS = 64
+#: Batches of fewer links (rows) than this run the serial kernels: one link's synthesis takes
+#: ~0.1 ms, less than waking a thread pool, and on a busy machine a parallel region waits for
+#: every thread. Rows are independent, so the values do not depend on the path taken.
+SERIAL_BELOW = 8
 
 
 # ---------------------------------------------------------------------------------------------
@@ -109,9 +113,58 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
             )
 
 
-#: :func:`synthesize_kernel` compiled without threads, for a few links (see
-#: :data:`phyloc.phy.synthesis.SERIAL_BELOW`); the same code, so the same values.
+#: :func:`synthesize_kernel` compiled without threads, for fewer than :data:`SERIAL_BELOW`
+#: links; the same code, so the same values.
 synthesize_serial_kernel = njit(cache=True)(synthesize_kernel.py_func)
+
+
+# ---------------------------------------------------------------------------------------------
+# Correlation spectra:  c[i, n] = R[i, n]^* S[tx[i], n]   (DiPNet eq. (23))
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True, parallel=True)
+def spectrum_kernel(R, symbols, tx_index, out):
+    """``out[i, n] = conj(R[i, n]) · symbols[tx_index[i], n]``; returns whether R is finite.
+
+    One pass over R, parallel over links: the product, and the finiteness check through
+    ``Σ (x − x)``, which is 0 for finite x and NaN for NaN or ±inf (no fast-math, so the
+    compiler keeps it).
+    """
+    n_links, N = R.shape
+    acc = 0.0
+    for i in prange(n_links):
+        s = symbols[tx_index[i]]
+        row = 0.0
+        for n in range(N):
+            rr = np.float64(R[i, n].real)
+            ri = np.float64(R[i, n].imag)
+            row += (rr - rr) + (ri - ri)
+            sr = s[n].real
+            si = s[n].imag
+            out[i, n] = complex(rr * sr + ri * si, rr * si - ri * sr)
+        acc += row
+    return acc == 0.0
+
+
+#: :func:`spectrum_kernel` without threads, for fewer than :data:`SERIAL_BELOW` links.
+spectrum_serial_kernel = njit(cache=True)(spectrum_kernel.py_func)
+
+
+@njit(cache=True)
+def symbol_moments_kernel(symbols, n_first, energy, moment2):
+    """``energy[t] = Σ_n |S_tn|²`` and ``moment2[t] = Σ_n |S_tn|² n²`` with
+    ``n = n_first + k`` (DiPNet eqs. (24), (26))."""
+    n_tx, N = symbols.shape
+    for t in range(n_tx):
+        e = 0.0
+        m = 0.0
+        for k in range(N):
+            z = symbols[t, k]
+            p = z.real * z.real + z.imag * z.imag
+            n = n_first + k
+            e += p
+            m += p * (n * n)
+        energy[t] = e
+        moment2[t] = m
 
 
 # ---------------------------------------------------------------------------------------------

@@ -297,6 +297,7 @@ def correlation_tables(
     tx_index=None,
     noise_var=None,
     chunk: int = 64,
+    out: np.ndarray | None = None,
 ) -> CorrelationTable:
     """Correlation tables of a batch of links by one zero-padded FFT per link (DiPNet eq. (23)).
 
@@ -317,6 +318,12 @@ def correlation_tables(
         σ² [W] per subcarrier; default ``system.noise_power_w``.
     chunk : int
         Links per planned FFT (bounds the working memory).
+    out : [n_links, L] complex128, optional
+        C-contiguous array to hold the table's :attr:`~CorrelationTable.values` (its old
+        contents are overwritten; the table keeps a reference). A caller that builds tables
+        batch after batch and drops each before the next saves the operating system's zeroing
+        of fresh pages (L·16 bytes per link, about a third of the FFT's cost at β ≈ 8); use
+        :func:`phyloc.phy.fft.aligned_empty` for SIMD alignment.
 
     Returns
     -------
@@ -353,11 +360,17 @@ def correlation_tables(
     N = system.n_subcarriers
     if R.ndim != 2 or R.shape[1] != N:
         raise ValidationError("R", f"array of shape {R.shape}", f"must be [n_links, N = {N}]")
-    R = v.finite_array("R", R, dtype=np.complex128)
+    if R.dtype not in (np.complex64, np.complex128):  # complex64 (stored datasets) as it is
+        try:
+            R = R.astype(np.complex128)
+        except (TypeError, ValueError):
+            raise ValidationError("R", "<array>", "must convert to complex128") from None
+    R = np.ascontiguousarray(R)
     n_links = R.shape[0]
     tx = np.zeros(n_links, np.int64) if tx_index is None else np.asarray(tx_index, np.int64)
     if tx.shape != (n_links,) or (n_links and (tx.min() < 0 or tx.max() >= S.shape[0])):
         raise ValidationError("tx_index", tx, f"[n_links] indices into 0 … {S.shape[0] - 1}")
+    tx = np.ascontiguousarray(tx)
     nv = system.noise_power_w if noise_var is None else noise_var
     nv = np.broadcast_to(np.asarray(nv, dtype=np.float64), (n_links,)).copy()
     if not np.all(np.isfinite(nv)) or np.any(nv <= 0):
@@ -365,14 +378,33 @@ def correlation_tables(
     chunk = v.integer("chunk", chunk, minimum=1)
 
     L = fft_length(system, beta)
-    spectrum = np.conj(R) * S[tx]
-    values = _fft.aligned_empty((n_links, L))
+    spectrum = np.empty((n_links, N), np.complex128)
+    serial = n_links < _kernels.SERIAL_BELOW
+    kernel = _kernels.spectrum_serial_kernel if serial else _kernels.spectrum_kernel
+    if not kernel(R, S, tx, spectrum):
+        v.check_finite("R", R)
+    if out is None:
+        values = _fft.aligned_empty((n_links, L))
+    elif (
+        not isinstance(out, np.ndarray)
+        or out.shape != (n_links, L)
+        or out.dtype != np.complex128
+        or not out.flags.c_contiguous
+        or not out.flags.writeable
+    ):
+        got = f"{type(out).__name__} {getattr(out, 'shape', '')} {getattr(out, 'dtype', '')}"
+        raise ValidationError(
+            "out", got, f"must be a writeable C-contiguous complex128 array [{n_links}, {L}]"
+        )
+    else:
+        values = out
     for a in range(0, n_links, chunk):
         b = min(a + chunk, n_links)
         _fft.batch_fft(b - a, L).centered(spectrum[a:b], out=values[a:b])
-    energy = (np.abs(S) ** 2).sum(axis=1)[tx]
-    n = system.subcarrier_indices()
-    moment2 = ((np.abs(S) ** 2) * n**2).sum(axis=1)[tx]
+    energy = np.empty(S.shape[0])
+    moment2 = np.empty(S.shape[0])
+    _kernels.symbol_moments_kernel(S, -float((N - 1) // 2), energy, moment2)
+    energy, moment2 = energy[tx], moment2[tx]
     return CorrelationTable(
         values=values,
         spectrum=spectrum,

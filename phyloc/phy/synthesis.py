@@ -24,14 +24,10 @@ import numpy as np
 from phyloc.errors import ValidationError
 from phyloc.phy import _gauss, _kernels
 from phyloc.phy._gauss import ZIG_F, ZIG_K, ZIG_X
+from phyloc.phy._kernels import SERIAL_BELOW
 from phyloc.phy.paths import PathSet
 from phyloc.phy.system import OFDMSystem
 from phyloc.phy.waveform import _check_rng, check_symbols
-
-#: Batches of fewer links (rows) than this run the serial kernels: one link's synthesis takes
-#: ~0.1 ms, less than waking a thread pool, and on a busy machine a parallel region waits for
-#: every thread. Rows are independent, so the values do not depend on the path taken.
-SERIAL_BELOW = 8
 
 
 def complex_noise(shape, noise_var, rng: np.random.Generator) -> np.ndarray:
@@ -61,19 +57,24 @@ def complex_noise(shape, noise_var, rng: np.random.Generator) -> np.ndarray:
     2.0
     """
     _check_rng(rng)
-    nv = np.asarray(noise_var, dtype=np.float64)
     shape = tuple(int(x) for x in shape)
-    rows = math.prod(shape[:-1])
+    z = np.empty((math.prod(shape[:-1]), 2 * shape[-1]))
+    _fill_noise(z, np.asarray(noise_var, dtype=np.float64), rng)
+    return z.view(np.complex128).reshape(shape)
+
+
+def _fill_noise(z, nv, rng):
+    """Fill the float rows ``z [rows, 2M]`` (complex rows, interleaved) with ``CN(0, nv)``;
+    ``nv`` is a scalar or one variance per row."""
+    rows = z.shape[0]
     scale = np.sqrt(nv / 2.0)
     if scale.ndim == 1:
         per_row = np.repeat(scale, rows // max(scale.size, 1)) if scale.size else scale
     else:
         per_row = np.full(rows, float(scale))
     seeds = rng.integers(0, 2**64, size=rows, dtype=np.uint64, endpoint=False)
-    z = np.empty((rows, 2 * shape[-1]))
     kernel = _gauss.normal_rows_serial_kernel if rows < SERIAL_BELOW else _gauss.normal_rows_kernel
     kernel(seeds, np.ascontiguousarray(per_row, dtype=np.float64), ZIG_X, ZIG_F, ZIG_K, z)
-    return z.view(np.complex128).reshape(shape)
 
 
 def synthesize(
@@ -136,10 +137,12 @@ def synthesize(
                 f"range [{tx.min()}, {tx.max()}]",
                 f"must index symbols rows 0…{S.shape[0] - 1}",
             )
+    # the noise is drawn into `out`, which the kernel then reads as `noise` (each entry is read
+    # before it is written)
     if rng is None:
         if noise_var not in (None, 0, 0.0):
             raise ValidationError("rng", None, "a Generator is required when noise_var > 0")
-        noise = np.zeros((n_links, N), dtype=np.complex128)
+        out = np.zeros((n_links, N), dtype=np.complex128)
     else:
         nv = system.noise_power_w if noise_var is None else noise_var
         nv = np.asarray(nv, dtype=np.float64)
@@ -149,11 +152,12 @@ def synthesize(
             )
         if not np.all(np.isfinite(nv)) or np.any(nv < 0):
             raise ValidationError("noise_var", nv, "must be finite and >= 0 W")
-        noise = complex_noise((n_links, N), nv, rng)
+        _check_rng(rng)
+        out = np.empty((n_links, N), dtype=np.complex128)
+        _fill_noise(out.view(np.float64), nv, rng)
     n_first = -float((N - 1) // 2)
-    out = np.empty((n_links, N), dtype=np.complex128)
     kernel = (
         _kernels.synthesize_serial_kernel if n_links < SERIAL_BELOW else _kernels.synthesize_kernel
     )
-    kernel(S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, noise, out)
+    kernel(S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, out, out)
     return out
