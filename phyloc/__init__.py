@@ -20,9 +20,21 @@ WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel model
 updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
 """
 
+import os
 from importlib.metadata import PackageNotFoundError, version
 
 from phyloc.errors import PhylocError, ValidationError
+
+#: Spin count of idle OpenMP threads (GNU libgomp, Numba's ``omp`` threading layer) before they
+#: sleep. libgomp's default, 300 000 pause loops, keeps a thread spinning for milliseconds after
+#: every parallel kernel; on 2 cores that thread takes a core from the FFTW threads of the
+#: correlation tables that follow (measured 2026-11-26: tables 109 µs per link after the
+#: parallel synthesis kernel, 75 µs with 10 000; DiPNet per agent-iteration unchanged). Read by
+#: libgomp when Numba first starts its threads, so it is set here, before any kernel runs; a
+#: value set by the user (``GOMP_SPINCOUNT`` or ``OMP_WAIT_POLICY``) is kept.
+GOMP_SPINCOUNT = "10000"
+if "GOMP_SPINCOUNT" not in os.environ and "OMP_WAIT_POLICY" not in os.environ:
+    os.environ["GOMP_SPINCOUNT"] = GOMP_SPINCOUNT
 
 try:
     __version__ = version("phyloc")

@@ -16,7 +16,7 @@ ROOT = Path(__file__).resolve().parents[1] / "phyloc"
 
 #: Bottom to top. A module may import only from its own layer or below.
 LAYERS = [
-    ["phyloc", "phyloc.errors", "phyloc._validate"],
+    ["phyloc", "phyloc.errors", "phyloc._validate", "phyloc._jit"],
     # reporting records the FFT backend in its metadata; parallel keeps each task's Numba
     # kernels and FFTs to its share of the cores
     ["phyloc.phy", "phyloc.reporting", "phyloc.parallel"],

@@ -15,6 +15,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 PACKAGE = Path(__file__).resolve().parents[1] / "phyloc"
 
 PROBE = r"""
@@ -115,3 +117,78 @@ def test_no_kernel_calls_a_fastmath_kernel():
                 if name in fast:
                     offenders.append(f"{path.name}:{node.name} calls {name}")
     assert not offenders, offenders
+
+
+TWINS = r"""
+import os, sys
+import numpy as np
+from phyloc.phy import _gauss as g
+from phyloc.phy import _kernels as K
+
+g.splitmix64(1)  # the first compiled call starts a helper thread; count after it
+n, N = 16, 8
+S = np.ones((1, N), complex)
+tx = np.zeros(n, np.int64)
+calls = {
+    "spectrum": lambda k: k(np.ones((n, N), complex), S, tx, np.empty((n, N), complex)),
+    "synthesize": lambda k: k(S, tx, np.zeros(n), np.ones(n, complex), np.arange(n + 1), 1.0,
+                              -3.0, np.zeros((n, N), complex), np.zeros((n, N), complex)),
+    "normal_rows": lambda k: k(np.arange(n, dtype=np.uint64), np.ones(n), g.ZIG_X, g.ZIG_F,
+                               g.ZIG_K, np.empty((n, N))),
+}
+kernels = {
+    "spectrum": (K.spectrum_kernel, K.spectrum_serial_kernel),
+    "synthesize": (K.synthesize_kernel, K.synthesize_serial_kernel),
+    "normal_rows": (g.normal_rows_kernel, g.normal_rows_serial_kernel),
+}
+tasks = lambda: len(os.listdir("/proc/self/task"))
+name, order = sys.argv[1], sys.argv[2]
+parallel, serial = kernels[name]
+counts = [tasks()]
+for k in ((serial, parallel) if order == "serial_first" else (serial,)):
+    calls[name](k)
+    counts.append(tasks())
+print(*counts)
+"""
+
+
+def _threads_after(cache_dir, name, order):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir), NUMBA_NUM_THREADS="2")
+    done = subprocess.run(
+        [sys.executable, "-c", TWINS, name, order],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return [int(x) for x in done.stdout.split()]
+
+
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="counts threads in /proc")
+@pytest.mark.parametrize("name", ["spectrum", "synthesize", "normal_rows"])
+def test_serial_twins_are_cached_apart_from_their_parallel_kernels(tmp_path, name):
+    """Numba's cache does not tell a ``parallel=True`` kernel from a serial copy of the same
+    Python function (numba issue #6845): the copy compiled first was loaded for both. With
+    :func:`phyloc._jit.serial_twin` each has its own cache files. Process 1 compiles and caches
+    only the twin; process 2 loads the twin (no thread starts) and then calls the parallel
+    kernel, which must start the thread pool, i.e. must not be the twin's cached code."""
+    _threads_after(tmp_path, name, "serial_only")
+    before, after_serial, after_parallel = _threads_after(tmp_path, name, "serial_first")
+    assert after_serial == before
+    assert after_parallel > after_serial
+
+
+@pytest.mark.parametrize(
+    ("env", "expected"),
+    [({}, "10000"), ({"GOMP_SPINCOUNT": "5"}, "5"), ({"OMP_WAIT_POLICY": "active"}, None)],
+)
+def test_importing_phyloc_bounds_openmp_spinning_unless_the_user_chose(env, expected):
+    """libgomp reads its spin count when Numba first starts threads: the package sets it on
+    import (the default spins for milliseconds and takes a core from FFTW), keeping any value
+    or wait policy the user set."""
+    base = {k: v for k, v in os.environ.items() if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY")}
+    code = "import os, phyloc; print(os.environ.get('GOMP_SPINCOUNT'))"
+    done = subprocess.run(
+        [sys.executable, "-c", code], env=base | env, capture_output=True, text=True, check=True
+    )
+    assert done.stdout.strip() == str(expected)

@@ -25,6 +25,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from phyloc._jit import serial_twin
+
 #: Ziggurat parameters for 256 layers: the start of the tail ``r`` and the common layer area
 #: ``v`` of ``f(x) = exp(−x²/2)`` (Marsaglia and Tsang 2000, Sec. 2).
 ZIG_R = 3.6541528853610088
@@ -142,4 +144,4 @@ def normal_rows_kernel(seeds, scale, zx, zf, zk, out):
 #: :func:`normal_rows_kernel` compiled without threads, for a few rows: starting the thread
 #: pool costs more than it saves there, and on a busy machine a parallel region waits for
 #: every thread (20–60× the median latency of one link). The same code, the same values.
-normal_rows_serial_kernel = njit(cache=True)(normal_rows_kernel.py_func)
+normal_rows_serial_kernel = serial_twin(normal_rows_kernel)

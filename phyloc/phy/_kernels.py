@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from phyloc._jit import serial_twin
+
 # Per path, a chunk of _LANES subcarriers is the path's seed phasor times a table of lane
 # offsets e^{jθm}; the seed advances by one complex multiplication per chunk and is re-seeded
 # with an exact exp() every _RESEED subcarriers, which keeps the accumulated rounding error below
@@ -115,7 +117,7 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
 
 #: :func:`synthesize_kernel` compiled without threads, for fewer than :data:`SERIAL_BELOW`
 #: links; the same code, so the same values.
-synthesize_serial_kernel = njit(cache=True)(synthesize_kernel.py_func)
+synthesize_serial_kernel = serial_twin(synthesize_kernel)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -146,7 +148,7 @@ def spectrum_kernel(R, symbols, tx_index, out):
 
 
 #: :func:`spectrum_kernel` without threads, for fewer than :data:`SERIAL_BELOW` links.
-spectrum_serial_kernel = njit(cache=True)(spectrum_kernel.py_func)
+spectrum_serial_kernel = serial_twin(spectrum_kernel)
 
 
 @njit(cache=True)
