@@ -145,3 +145,59 @@ def test_evaluate_refuses_a_corrupt_shard_and_names_it(tmp_path, capsys):
         main(["evaluate", str(h5), "--out", str(bad), "--fast", "--no-progress", "--no-verify"])
         == 0
     )
+
+
+TWO_SCENARIOS = (
+    'kind = "localization"\nname = "tiny2"\n'
+    + COMMON
+    + "model_error_m = 0.3\n[localization.corr]\nmodel_error_m = 0.0\n"
+    + """
+[experiment]
+scenarios = { c2 = "winner2_c2", d1 = "winner2_d1" }
+agents = [4]
+realizations = 1
+methods = ["dipnet", "corr"]
+inits = ["truth_free"]
+cdf_agents = [4]
+"""
+)
+
+
+def test_scenario_localization_replaces_keys_for_its_scenario_only():
+    """``experiment.scenario_localization`` gives one scenario its own [localization] keys; a
+    method's own subtable still wins, and the other scenario is untouched."""
+    over = TWO_SCENARIOS + "scenario_localization = { d1 = { model_error_m = 0.55 } }\n"
+    recipe = load_recipe(over)
+    exp, _rspec, lspec, _nets, _specs = lx.prepare(recipe)
+    specs = lx.scenario_localization_specs(recipe, exp, lspec)
+    assert specs["c2"] is lspec
+    assert specs["c2"].options_for("dipnet").model_error_m == 0.3
+    assert specs["d1"].options_for("dipnet").model_error_m == 0.55
+    assert specs["d1"].options_for("corr").model_error_m == 0.0  # its own subtable wins
+    base = lx.run(load_recipe(TWO_SCENARIOS))["figures"]
+    same = lx.run(
+        load_recipe(TWO_SCENARIOS + "scenario_localization = { d1 = { model_error_m = 0.3 } }\n")
+    )["figures"]
+    changed = lx.run(recipe)["figures"]
+    np.testing.assert_equal(_non_timing(same), _non_timing(base))  # restating the base value
+    for key in ("dipnet.c2.agents_4.framework_rmse_m", "corr.d1.agents_4.framework_rmse_m"):
+        assert changed[key] == base[key]
+    assert changed["dipnet.d1.agents_4.nees"] != base["dipnet.d1.agents_4.nees"]
+
+
+@pytest.mark.parametrize(
+    ("line", "match"),
+    [
+        ("scenario_localization = { x1 = { model_error_m = 0.5 } }", r"scenario_localization = x1"),
+        ("scenario_localization = { d1 = 0.5 }", r"scenario_localization\.d1 = 0\.5"),
+        (
+            "scenario_localization = { d1 = { model_error_m = -1.0 } }",
+            r"scenario_localization\.d1\.model_error_m",
+        ),
+    ],
+)
+def test_scenario_localization_errors_name_the_key(line, match):
+    from phyloc.errors import ValidationError
+
+    with pytest.raises(ValidationError, match=match):
+        lx.run(load_recipe(TWO_SCENARIOS + line + "\n"))

@@ -221,7 +221,13 @@ class LocalizationSpec:
 
 @dataclass(frozen=True)
 class LocalizationExperimentSpec:
-    """``[experiment]`` of a localization recipe (``[experiment.fast]`` for ``--fast``)."""
+    """``[experiment]`` of a localization recipe (``[experiment.fast]`` for ``--fast``).
+
+    ``scenario_localization`` (``{token: {key: value}}``, default none) replaces top-level
+    ``[localization]`` keys for one scenario, e.g. a channel's own range model error:
+    ``scenario_localization = { d1 = { model_error_m = 0.55 } }``. A method's own subtable
+    ``[localization.<method>]`` still wins over it.
+    """
 
     scenarios: dict = field(default_factory=lambda: {"c2": "winner2_c2", "d1": "winner2_d1"})
     agents: tuple = (3, 6, 9, 12, 15, 18, 21, 24, 27, 30)
@@ -229,10 +235,30 @@ class LocalizationExperimentSpec:
     methods: tuple = METHODS
     inits: tuple = ("truth_free", "informed")
     cdf_agents: tuple = (3, 30)
+    scenario_localization: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not isinstance(self.scenarios, dict) or not self.scenarios:
             raise ValidationError("experiment.scenarios", self.scenarios, "token = scenario name")
+        if not isinstance(self.scenario_localization, dict):
+            raise ValidationError(
+                "experiment.scenario_localization",
+                self.scenario_localization,
+                "a table {token = {[localization] key = value}}",
+            )
+        for tok, over in self.scenario_localization.items():
+            if tok not in self.scenarios:
+                raise ValidationError(
+                    "experiment.scenario_localization",
+                    tok,
+                    f"a scenario token of experiment.scenarios: {', '.join(self.scenarios)}",
+                )
+            if not isinstance(over, dict):
+                raise ValidationError(
+                    f"experiment.scenario_localization.{tok}",
+                    over,
+                    "a table of [localization] keys",
+                )
         agents = tuple(v.integer("experiment.agents", a, minimum=2) for a in self.agents)
         if not agents:
             raise ValidationError("experiment.agents", [], "at least one size >= 2")
@@ -602,15 +628,35 @@ def prepare(recipe: Recipe, *, fast: bool = False):
     return exp, rspec, lspec, nets, scenario_specs(chan, exp.scenarios)
 
 
+def scenario_localization_specs(recipe: Recipe, exp, lspec) -> dict:
+    """``{token: LocalizationSpec}``: ``lspec`` with ``experiment.scenario_localization``
+    applied per scenario (errors name the key under ``experiment.scenario_localization``)."""
+    raw = recipe.section("localization")
+    out = {}
+    for tok in exp.scenarios:
+        over = exp.scenario_localization.get(tok)
+        if not over:
+            out[tok] = lspec
+            continue
+        try:
+            out[tok] = LocalizationSpec.from_dict({**raw, **over})
+        except ValidationError as exc:
+            key = exc.field.removeprefix("localization").lstrip(".")
+            where = f"experiment.scenario_localization.{tok}" + (f".{key}" if key else "")
+            raise ValidationError(where, exc.value, exc.allowed) from None
+    return out
+
+
 def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
     """Run a ``kind = "localization"`` recipe; returns ``{"figures", "series", "meta"}``."""
     system = recipe.system
     exp, rspec, lspec, nets, specs = prepare(recipe, fast=fast)
+    lspecs = scenario_localization_specs(recipe, exp, lspec)
     payloads, keys = [], []
     for tok, spec in specs.items():
         for n in exp.agents:
             for r in range(exp.realizations):
-                payloads.append((system, nets[n], spec, rspec, lspec, exp.methods, exp.inits))
+                payloads.append((system, nets[n], spec, rspec, lspecs[tok], exp.methods, exp.inits))
                 keys.append((tok, n, r))
     results = run_tasks(
         _task,
@@ -636,6 +682,7 @@ def _meta(recipe, exp, lspec, fast) -> dict:
         "agents": list(exp.agents),
         "realizations": exp.realizations,
         "scenarios": dict(exp.scenarios),
+        "scenario_localization": {k: dict(o) for k, o in exp.scenario_localization.items()},
         "methods": list(exp.methods),
         "inits": {i: i.replace("_", "-") for i in exp.inits},
         "labels": {
