@@ -24,3 +24,19 @@ def best_seconds(fn, *, repeat: int = 5, number: int = 1, min_time: float = 0.0)
         best = min(best, dt / number)
         rounds += 1
     return best
+
+
+def best_seconds_interleaved(fns: dict, *, repeat: int = 5) -> dict:
+    """Best wall time of one call of each function in ``fns`` (``{name: fn}``), the functions
+    called in turn in every round, so that a ratio of two of them compares runs made under the
+    same load (on a shared machine the speed of one core drifts by tens of percent within
+    seconds). Each function is called once before timing."""
+    for fn in fns.values():
+        fn()
+    best = dict.fromkeys(fns, float("inf"))
+    for _ in range(repeat):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            best[name] = min(best[name], time.perf_counter() - t0)
+    return best

@@ -42,10 +42,10 @@ from phyloc.phy.waveform import qpsk_symbols
 
 try:
     from phyloc.benchmarks._reference import MISSING, naive
-    from phyloc.benchmarks._timing import best_seconds
+    from phyloc.benchmarks._timing import best_seconds, best_seconds_interleaved
 except ImportError:  # run from the source tree by asv
     from benchmarks._reference import MISSING, naive
-    from benchmarks._timing import best_seconds
+    from benchmarks._timing import best_seconds, best_seconds_interleaved
 
 N_LINKS = 256
 N_PATHS = 24
@@ -196,24 +196,26 @@ def report(quick: bool = False) -> dict[str, float]:
     def pipeline():
         correlation_tables(synthesize(paths, S, system, rng), S, system, beta=BETA)
 
-    t_pipe = best_seconds(pipeline, repeat=repeat)
     buf = phyfft.aligned_empty((N_LINKS, L))
 
     def pipeline_streaming():
         correlation_tables(synthesize(paths, S, system, rng), S, system, beta=BETA, out=buf)
 
-    t_stream = best_seconds(pipeline_streaming, repeat=repeat)
-    if twin is not None:
-        t_pipe_np = best_seconds(
-            lambda: numpy_pipeline(twin, paths, S, system, rng), repeat=max(1, repeat - 2)
-        )
     plan = phyfft.batch_fft(64, L)
 
     def floor():
         for _ in range(N_LINKS // 64):
             plan.execute()
 
-    t_floor = best_seconds(floor, repeat=repeat)
+    # the pipelines and their floor in turn: their ratios compare runs under the same load
+    best = best_seconds_interleaved(
+        {"pipe": pipeline, "stream": pipeline_streaming, "floor": floor}, repeat=2 * repeat
+    )
+    t_pipe, t_stream, t_floor = best["pipe"], best["stream"], best["floor"]
+    if twin is not None:
+        t_pipe_np = best_seconds(
+            lambda: numpy_pipeline(twin, paths, S, system, rng), repeat=max(1, repeat - 2)
+        )
     fig["synthesis_links_per_s"] = N_LINKS / t_syn
     if twin is not None:
         fig["synthesis_numpy_links_per_s"] = N_LINKS / t_syn_np
