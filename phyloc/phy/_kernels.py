@@ -83,7 +83,9 @@ def _synthesize_row(
 def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first, noise, out):
     """Fill ``out[i, k]`` with ``S[tx[i], k] Σ_l α_l e^{−jω(n_first+k)τ_l} + noise[i, k]``.
 
-    Parallel over links (each link writes its own row). Per path, the subcarriers are visited in
+    ``noise`` may be ``out`` itself (as :func:`~phyloc.phy.synthesis.synthesize` passes it):
+    each entry is read before it is written. Parallel over links (each link writes its own
+    row). Per path, the subcarriers are visited in
     chunks of ``_LANES``: a chunk's phasors are the path's seed ``α_l e^{−jωnτ_l}`` times a table
     of lane offsets ``e^{−jωmτ_l}``, accumulated into the row; the seed advances by one complex
     multiplication per chunk and is re-seeded from an exact exponential every ``_RESEED``
