@@ -295,3 +295,36 @@ def test_tables_written_into_a_callers_array_equal_fresh_ones(rng):
     for bad in (buf[:4], buf.astype(np.complex64), strided, np.zeros(5)):
         with pytest.raises(ValidationError, match=r"^out = "):
             correlation_tables(R, S, sysm, beta=4.0, out=bad)
+
+
+def test_a_held_table_is_never_overwritten_and_a_dropped_ones_memory_is_reused(paper_system, rng):
+    """Tables of at least :data:`~phyloc.phy.fft.RECYCLE_MIN_BYTES` recycle the memory of dropped
+    ones (no fresh pages to zero) and are then the same as tables in fresh memory; a table, or
+    any view of its values, still held keeps its values through later tables."""
+    S = qpsk_symbols(paper_system, 1, rng)
+    n = 16  # 16 · 20480 · 16 B = 5.2 MB
+
+    def table():
+        d = rng.uniform(5.0, 100.0, n) / C0
+        paths = PathSet(d, np.full(n, 1e-6 + 0j), np.arange(n + 1))
+        R = synthesize(paths, S, paper_system, rng)
+        return correlation_tables(R, S, paper_system), R
+
+    phyfft.release_recycled()
+    first, _ = table()
+    assert first.values.nbytes >= phyfft.RECYCLE_MIN_BYTES
+    addresses = {first.values.ctypes.data}
+    kept_row = first.values[3]  # a view only
+    copy = kept_row.copy()
+    del first
+    second, _ = table()
+    assert second.values.ctypes.data not in addresses
+    np.testing.assert_array_equal(kept_row, copy)
+    addresses.add(second.values.ctypes.data)
+    del kept_row, second  # now nothing refers to either
+    third, R = table()
+    assert third.values.ctypes.data in addresses
+    fresh = phyfft.aligned_empty(third.values.shape)
+    np.testing.assert_array_equal(
+        third.values, correlation_tables(R, S, paper_system, out=fresh).values
+    )

@@ -87,3 +87,62 @@ def test_odd_length_rows_into_a_misaligned_output(rng):
     big = phyfft.aligned_empty((5, 75))
     np.testing.assert_allclose(plan.execute(out=big[1:3]), np.fft.fft(x), atol=1e-12)
     np.testing.assert_allclose(big[1:3], np.fft.fft(x), atol=1e-12)
+
+
+@pytest.mark.parametrize("backend", ["pyfftw", "scipy"])
+def test_recycled_arrays_are_reused_only_when_nothing_refers_to_them(backend):
+    """The memory of a dropped large array is handed out again; an array with any view, slice,
+    reshape or memoryview alive, or held itself, never is."""
+    if backend == "pyfftw" and not phyfft._HAVE_PYFFTW:
+        pytest.skip("pyfftw not installed")
+    previous = phyfft.backend()
+    phyfft.set_backend(backend)
+    try:
+        phyfft.release_recycled()
+        shape = (8, phyfft.RECYCLE_MIN_BYTES // (8 * 16))
+        holders = {
+            "array": lambda a: a,
+            "slice": lambda a: a[2:5, 1:],
+            "reshape": lambda a: a.reshape(-1),
+            "view of a view": lambda a: a[1:][::2].T,
+            "memoryview": lambda a: memoryview(a),
+            "real part": lambda a: a.real,
+        }
+        for name, hold in holders.items():
+            a = phyfft.recycled_empty(shape)
+            a[...] = 3.0
+            address = a.ctypes.data
+            kept = hold(a)
+            del a
+            b = phyfft.recycled_empty(shape)
+            assert b.ctypes.data != address, name
+            b[...] = 0.0  # must not reach `kept`
+            assert np.all(np.asarray(kept) == 3.0), name
+            addresses = {address, b.ctypes.data}
+            del kept, b
+            c = phyfft.recycled_empty(shape)  # both dropped now: one of them comes back
+            assert c.ctypes.data in addresses, name
+            del c
+        a = phyfft.recycled_empty(shape)
+        address = a.ctypes.data
+        del a
+        assert phyfft.recycled_empty(shape).ctypes.data == address  # dropped: reused
+        small = phyfft.recycled_empty((4, 4))  # below the threshold: not tracked
+        assert small.shape == (4, 4) and not any(r[1] is small for r in phyfft._recycled)
+        assert phyfft.release_recycled() >= 1 and not phyfft._recycled
+    finally:
+        phyfft.set_backend(previous)
+
+
+def test_a_plan_does_not_keep_the_callers_output_alive(rng):
+    """After transforming into a caller's array the plan lets go of it (or a dropped table's
+    memory would stay allocated, and never be recycled, until the next transform)."""
+    import sys
+
+    plan = phyfft.batch_fft(4, 64)
+    plan.input[...] = rng.standard_normal((4, 64))
+    out = phyfft.aligned_empty((4, 64))
+    before = sys.getrefcount(out)
+    plan.execute(out=out)
+    assert sys.getrefcount(out) == before
+    np.testing.assert_allclose(out, np.fft.fft(plan.input), atol=1e-12)

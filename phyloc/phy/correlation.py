@@ -320,11 +320,11 @@ def correlation_tables(
         Links per planned FFT (bounds the working memory).
     out : [n_links, L] complex128, optional
         C-contiguous array to hold the table's :attr:`~CorrelationTable.values` (its old
-        contents are overwritten; the table keeps a reference). A caller that builds tables
-        batch after batch and drops each before the next saves the operating system's zeroing
-        of fresh pages (L·16 bytes per link: ~10 µs per link at β ≈ 8, against ~66 µs for
-        the FFT; ``phyloc bench phy``); use :func:`phyloc.phy.fft.aligned_empty` for SIMD
-        alignment.
+        contents are overwritten; the table keeps a reference); use
+        :func:`phyloc.phy.fft.aligned_empty` for SIMD alignment. Without it the values go to
+        :func:`phyloc.phy.fft.recycled_empty`, which reuses the memory of a dropped table of
+        the same size: fresh pages would cost the operating system's zeroing (L·16 bytes per
+        link, ~10 µs at β ≈ 8 against ~66 µs for the FFT; ``phyloc bench phy``).
 
     Returns
     -------
@@ -385,7 +385,7 @@ def correlation_tables(
     if not kernel(R, S, tx, spectrum):
         v.check_finite("R", R)
     if out is None:
-        values = _fft.aligned_empty((n_links, L))
+        values = _fft.recycled_empty((n_links, L))
     elif (
         not isinstance(out, np.ndarray)
         or out.shape != (n_links, L)
