@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from phyloc.analysis.pcrlb import pcrlb, pcrlb_recursion, range_information
+from phyloc.analysis.pcrlb import one_range_per_pair, pcrlb, pcrlb_recursion, range_information
 from phyloc.errors import ValidationError
 from phyloc.evaluation.range_scenarios import RangeScenario
 from phyloc.localization.tracking import RangeModel, _flow
@@ -103,3 +103,43 @@ def test_pcrlb_validation():
         pcrlb([], np.eye(2)[None])
     with pytest.raises(ValidationError):
         pcrlb_recursion(np.eye(2), np.eye(3), np.eye(3), np.zeros((1, 3, 3)))
+
+
+def test_one_range_per_pair_halves_a_pair_measured_both_ways_closed_form():
+    """Two agents on a line with one anchor each side, static model: a pair measured both
+    ways adds 2/σ² along the line to the joint information, one range per pair 1/σ²; anchor
+    ranges are untouched; one-way pairs are kept once whichever agent measured them."""
+    model = RangeModel("static", 2, sigma_r=0.1)
+    anchors = np.array([[-5.0, 0.0], [15.0, 0.0]])
+    x = np.array([[0.0, 0.0], [10.0, 0.0]])
+    z = np.full((1, 2, 4), np.nan)
+    z[0, 0, [1, 2]] = 1.0  # agent 0: agent 1 and anchor 0
+    z[0, 1, [0, 3]] = 1.0  # agent 1: agent 0 and anchor 1
+    sc = RangeScenario(model, anchors, x[None], x[None], z)
+    P0 = np.eye(2)[None].repeat(2, axis=0)
+    e = np.array([1.0, 0.0])
+    uu = np.outer(e, e) / 0.01
+
+    def joint(w):  # prior + anchors + w agent-agent ranges
+        J = np.eye(4)
+        J[:2, :2] += uu
+        J[2:, 2:] += uu
+        J[:2, :2] += w * uu
+        J[2:, 2:] += w * uu
+        J[:2, 2:] -= w * uu
+        J[2:, :2] -= w * uu
+        return J
+
+    np.testing.assert_allclose(pcrlb([sc], P0).cov[0], np.linalg.inv(joint(2)), rtol=1e-10)
+    one = pcrlb([sc], P0, pairs="one")
+    np.testing.assert_allclose(one.cov[0], np.linalg.inv(joint(1)), rtol=1e-10)
+    assert one.bounds["p"][0] > pcrlb([sc], P0).bounds["p"][0]
+    m = np.isfinite(z[0])
+    kept = one_range_per_pair(m)
+    assert kept[0, 1] and not kept[1, 0] and kept[0, 2] and kept[1, 3]
+    m1 = m.copy()
+    m1[0, 1] = False  # only agent 1 measured the pair: still kept once, as (0, 1)
+    kept1 = one_range_per_pair(m1)
+    assert kept1[0, 1] and not kept1[1, 0]
+    with pytest.raises(ValidationError, match="pairs"):
+        pcrlb([sc], P0, pairs="two")

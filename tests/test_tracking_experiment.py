@@ -60,10 +60,12 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     for s in meta["scenarios"]:
         expected.append(f"sirbp_over_pfbp.{s}.step_ratio")
         for k in meta["report_steps"]:
-            for b in ("pcrlb", "pcrlb_cond"):
+            for b in ("pcrlb", "pcrlb_cond", "pcrlb_cond_one_range"):
                 expected += [f"{b}.{s}.k{k}.p_m", f"{b}.{s}.k{k}.v_m_s", f"{b}.{s}.k{k}.a_m_s2"]
             # Jensen: the conditional bound (averaged inverses) is never below the Bayesian one
             assert f[f"pcrlb_cond.{s}.k{k}.p_m"] >= f[f"pcrlb.{s}.k{k}.p_m"] * (1 - 1e-9)
+            # less information, never a lower bound
+            assert f[f"pcrlb_cond_one_range.{s}.k{k}.p_m"] >= f[f"pcrlb_cond.{s}.k{k}.p_m"]
         for m in meta["methods"]:
             expected += [f"{m}.{s}.step_s", f"{m}.{s}.rmse_p_all_m"]
             if not m.startswith("edh"):  # centralized: no time per agent, no messages

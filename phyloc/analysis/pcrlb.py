@@ -148,7 +148,19 @@ def range_information(positions, anchors, measured, sigma_r: float, state_dim: i
     return J
 
 
-def pcrlb(scenarios, prior_cov: np.ndarray, *, average: str = "information") -> PCRLBResult:
+def one_range_per_pair(measured: np.ndarray) -> np.ndarray:
+    """``measured [n_agents, n_agents + n_anchors]`` with each agent pair kept once: the range
+    of ``(i, j)``, ``i < j``, if either agent measured it, and never that of ``(j, i)``."""
+    m = np.array(measured, dtype=bool)
+    n = m.shape[0]
+    ag = m[:, :n]
+    m[:, :n] = np.triu(ag | ag.T, k=1)
+    return m
+
+
+def pcrlb(
+    scenarios, prior_cov: np.ndarray, *, average: str = "information", pairs: str = "both"
+) -> PCRLBResult:
     """PCRLB of range-level cooperative tracking, Monte Carlo over scenarios.
 
     Parameters
@@ -164,6 +176,13 @@ def pcrlb(scenarios, prior_cov: np.ndarray, *, average: str = "information") -> 
     average : {"information", "bound"}
         Average the measurement information over scenarios (the Bayesian PCRLB, default) or
         the per-scenario bounds (the conditional bound); see the module docstring.
+    pairs : {"both", "one"}
+        ``"both"`` counts every measured range (a pair measured both ways twice: the
+        information of a centralized estimator, PF-BP eq. (18)); ``"one"`` keeps one range per
+        agent pair (:func:`one_range_per_pair`): the information of a pair as PF-BP's
+        distributed factor of eq. (17) sees it at one agent. Neither bounds the distributed
+        filter itself, which uses each range at one agent only; ``"one"`` shows how much of a
+        gap to the ``"both"`` bound is information that filter does not combine.
 
     Returns
     -------
@@ -183,12 +202,19 @@ def pcrlb(scenarios, prior_cov: np.ndarray, *, average: str = "information") -> 
         raise ValidationError("prior_cov", f"shape {P0.shape}", f"must be ({n_ag}, {nd}, {nd})")
     if average not in ("information", "bound"):
         raise ValidationError("average", average, "must be 'information' or 'bound'")
+    if pairs not in ("both", "one"):
+        raise ValidationError("pairs", pairs, "must be 'both' or 'one'")
+    mask = one_range_per_pair if pairs == "one" else (lambda m: m)
 
     def information(sc):
         return np.stack(
             [
                 range_information(
-                    sc.states[k, :, :dim], sc.anchors, np.isfinite(sc.z[k]), model.sigma_r, nd
+                    sc.states[k, :, :dim],
+                    sc.anchors,
+                    mask(np.isfinite(sc.z[k])),
+                    model.sigma_r,
+                    nd,
                 )
                 for k in range(K)
             ]

@@ -66,6 +66,9 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
     ``pcrlb.<s>.k<k>.p_m`` / ``v_m_s`` / ``a_m_s2``   PCRLB on the position/velocity/acceleration
                                      RMSE
     ``pcrlb_cond.<s>.k<k>.p_m`` / ...   the conditional bound (per-trajectory bounds averaged)
+    ``pcrlb_cond_one_range.<s>.k<k>.p_m`` / ...  the conditional bound with one range per agent
+                                     pair (``pcrlb(..., pairs="one")``): the pair information
+                                     PF-BP's distributed factor (eq. (17)) sees at one agent
     ``<m>.<s>.k<ko>.outage_<x>m``    fraction of (run, agent) position errors > x at step ko
                                      (Fig. 6)
     ``<m>.<s>.rmse_p_all_m``         position RMSE over the whole trajectory
@@ -730,11 +733,14 @@ def _aggregate(keys, results, exp):
         series[f"{tok}.anchors_m"] = first.anchors
         bound = pcrlb(scs, P0).bounds
         cond = pcrlb(scs, P0, average="bound").bounds
+        cond_one = pcrlb(scs, P0, average="bound", pairs="one").bounds
         for b in blocks:
             for name, bb in (("pcrlb", bound), ("pcrlb_cond", cond)):
                 series[f"{name}.{tok}.{_UNITS[b]}"] = bb[b]
                 for k in exp.report_steps:
                     figures[f"{name}.{tok}.k{k}.{_UNITS[b]}"] = float(bb[b][k - 1])
+            for k in exp.report_steps:
+                figures[f"pcrlb_cond_one_range.{tok}.k{k}.{_UNITS[b]}"] = float(cond_one[b][k - 1])
         if exp.measurements == "sage":
             n_valid = sum(p["sage"]["n_valid"] for p in parts)
             sq = sum(p["sage"]["sq_err_sum"] for p in parts)
