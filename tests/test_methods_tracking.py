@@ -91,3 +91,37 @@ def test_a_different_seed_changes_a_random_method(name):
         np.testing.assert_array_equal(a.estimates, b.estimates)
     else:
         assert not np.array_equal(a.estimates, b.estimates)
+
+
+def _updates(meas):
+    """One :class:`~phyloc.localization.tracking.loop.Update` per method, small options."""
+    from phyloc.localization.tracking.edh import EDHUpdate
+    from phyloc.localization.tracking.pfbp import PFBPOptions, PFBPUpdate
+    from phyloc.localization.tracking.sirbp import SIRBPOptions, SIRBPUpdate
+    from phyloc.localization.tracking.spbp import SPBPOptions, SPBPUpdate
+
+    m, pf = meas.model, PFBPOptions(n_particles=300, n_lambda=5, regularize=True)
+    return {
+        "pfbp": PFBPUpdate(m, pf),
+        "sirbp": SIRBPUpdate(m, SIRBPOptions(n_particles=300), meas.anchor_bounds()),
+        "spbp": SPBPUpdate(m, SPBPOptions(regularize=True)),
+        "edh": EDHUpdate(m, pf),
+    }
+
+
+@pytest.mark.parametrize("name", ["pfbp", "sirbp", "spbp", "edh"])
+def test_stepping_the_loop_equals_track(name):
+    """The one loop of the family (``tracking.loop``): ``Tracker.step`` step by step gives
+    what ``track`` records, and the particles and random draws carry over between steps."""
+    from phyloc.localization.tracking.loop import Tracker, track
+
+    meas, prior, _ = _tiny_problem()
+    res = track(meas, prior, np.random.default_rng(3), _updates(meas)[name])
+    t = Tracker(_updates(meas)[name], prior, np.random.default_rng(3))
+    for k in range(meas.n_steps):
+        mean, cov = t.step(meas.z[k], meas.anchors_at(k))
+        np.testing.assert_array_equal(mean, res.estimates[k])
+        np.testing.assert_array_equal(cov, res.covariances[k])
+    assert res.label == name and (res.particles is None) == (name == "spbp")
+    joint = name == "edh"
+    assert t.belief.joint == joint and np.isnan(res.timing.agent_s).all() == joint

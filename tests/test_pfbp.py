@@ -26,7 +26,7 @@ from phyloc.localization.tracking import (
     run_sirbp,
     use_flow,
 )
-from phyloc.localization.tracking.range_models import agent_measurements, all_measurements
+from phyloc.localization.tracking.measurements import agent_measurements, all_measurements
 from phyloc.network import make_network
 
 

@@ -25,12 +25,15 @@ name             label        method (options)
 ``edh_reg``      EDH reg      EDH with the regularization of PF-BP eqs. (32), (33)
 ===============  ===========  ==================================================================
 
-Modules: :mod:`~phyloc.localization.tracking.range_models` (state and measurement models, the
-family's input types), :mod:`~phyloc.localization.tracking.pfbp`,
-:mod:`~phyloc.localization.tracking.sirbp`, :mod:`~phyloc.localization.tracking.spbp`,
-:mod:`~phyloc.localization.tracking.edh`, and the flow kernels in ``_flow`` (:func:`use_flow`
-swaps the flow of PF-BP and EDH, e.g. for the NumPy twin in a benchmark). Simulated scenarios
-(truth and measurements) are in :mod:`phyloc.evaluation.range_scenarios`.
+Modules: the family's input types — :mod:`~phyloc.localization.tracking.model` (state and
+range noise model), :mod:`~phyloc.localization.tracking.measurements` (ranges and factors),
+:mod:`~phyloc.localization.tracking.priors`; :mod:`~phyloc.localization.tracking.loop`, the one
+loop over time steps every method runs (prediction, estimates, results, timing); the methods'
+updates :mod:`~phyloc.localization.tracking.pfbp`, :mod:`~phyloc.localization.tracking.sirbp`,
+:mod:`~phyloc.localization.tracking.spbp`, :mod:`~phyloc.localization.tracking.edh`; and the flow
+kernels in ``_flow`` (:func:`use_flow` swaps the flow of PF-BP and EDH, e.g. for the NumPy twin
+in a benchmark). Simulated scenarios (truth and
+measurements) are in :mod:`phyloc.evaluation.range_scenarios`.
 
 Examples
 --------
@@ -56,15 +59,10 @@ Processing Letters 21(2), pp. 145–149, 2014.
 from phyloc.localization.registry import register_method
 from phyloc.localization.tracking._flow import use_flow
 from phyloc.localization.tracking.edh import run_edh
+from phyloc.localization.tracking.measurements import FACTORS, RangeMeasurements
+from phyloc.localization.tracking.model import STATE_MODELS, RangeModel
 from phyloc.localization.tracking.pfbp import PFBPOptions, run_pfbp
-from phyloc.localization.tracking.range_models import (
-    FACTORS,
-    STATE_MODELS,
-    GaussianPrior,
-    RangeMeasurements,
-    RangeModel,
-    paper_prior,
-)
+from phyloc.localization.tracking.priors import GaussianPrior, paper_prior
 from phyloc.localization.tracking.sirbp import SIRBPOptions, run_sirbp
 from phyloc.localization.tracking.spbp import SPBPOptions, run_spbp
 

@@ -20,7 +20,8 @@ anchor ``anchor_pos[q]``. A zero distance gives a zero Jacobian row (no NaN).
 
 The numba kernels are tested against plain-NumPy twins in ``tests/naive_flow.py``.
 :func:`run_flow` is the flow PF-BP and the EDH filter call; :func:`use_flow` swaps in another
-implementation for a block of code (the benchmarks time the NumPy twin that way).
+implementation for a block of code (the benchmarks time the NumPy twin that way);
+:func:`flow_links` converts measurements to the offset form.
 
 Examples
 --------
@@ -462,3 +463,24 @@ def stacked_loglik(B, off_a, off_b, anchor_pos, z, inv_var, dim):
         y = anchor_pos[q : q + 1] if b < 0 else np.ascontiguousarray(B[:, b : b + dim])
         paired_range_loglik_kernel(x, y, float(z[q]), inv_var, out)
     return out
+
+
+def flow_links(rx, tx, z, local_index, n_agents, anchors, dim, state_dim):
+    """Convert measurements to the offset form of the flow kernels.
+
+    ``local_index[node]`` is the slot of an agent in the stacked state (its position occupies
+    ``slot·N_D … slot·N_D + dim``). Anchors get offset −1 and their coordinates in ``anchor_pos``.
+    Returns ``off_a, off_b [L] int64, anchor_pos [L, dim], z [L]`` (``rx`` is always an agent).
+    """
+    off_a = local_index[rx] * state_dim
+    is_anchor = tx >= n_agents
+    off_b = np.where(is_anchor, -1, local_index[np.minimum(tx, n_agents - 1)] * state_dim)
+    anchor_pos = np.zeros((rx.size, dim))
+    if is_anchor.any():
+        anchor_pos[is_anchor] = anchors[tx[is_anchor] - n_agents]
+    return (
+        np.ascontiguousarray(off_a, dtype=np.int64),
+        np.ascontiguousarray(off_b, dtype=np.int64),
+        anchor_pos,
+        np.ascontiguousarray(z, dtype=np.float64),
+    )

@@ -8,35 +8,36 @@ step (centralized factors: both ``z_ij`` and ``z_ji``); weight by the invertible
 eq. (44)); resample systematically; update the covariance by a UKF at the posterior mean
 (PF-BP eq. (49)). The prior-density ratio of PF-BP eq. (44) uses the Gaussian
 ``N(x̄^{(k|k−1)}, P^{(k|k−1)})`` (the transition density is singular for CV/CA), as in
-:mod:`phyloc.localization.tracking.pfbp`.
+:mod:`phyloc.localization.tracking.pfbp`. The prediction and the bookkeeping are the family's
+loop (:func:`~phyloc.localization.tracking.loop.track`, with a joint belief); this module
+supplies :class:`EDHUpdate`.
 
 References
 ----------
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
-cooperative localization and navigation with embedded particle flow" (Appendix B).
+cooperative localization and navigation with embedded particle flow."
+(Appendix B.)
 """
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 from scipy.linalg import block_diag
 
 from phyloc.localization.particles import regularize, resample_permute
-from phyloc.localization.results import Result, Timing
+from phyloc.localization.results import Result
 from phyloc.localization.tracking import _flow
-from phyloc.localization.tracking.pfbp import PFBPOptions
-from phyloc.localization.tracking.range_models import (
-    GaussianPrior,
-    RangeMeasurements,
-    all_measurements,
+from phyloc.localization.tracking.loop import (
+    Belief,
+    Update,
     check_inputs,
     check_run_args,
-    flow_links,
     message_floats,
-    sample_gaussian,
+    track,
 )
+from phyloc.localization.tracking.measurements import RangeMeasurements, all_measurements
+from phyloc.localization.tracking.pfbp import PFBPOptions
+from phyloc.localization.tracking.priors import GaussianPrior, sample_gaussian
 
 
 def run_edh(
@@ -78,69 +79,83 @@ def run_edh(
     >>> res.estimates.shape, bool(np.isnan(res.timing.agent_s).all())
     ((2, 1, 2), True)
     """
-    t_start = time.perf_counter()
     opt = check_run_args(options, PFBPOptions, rng)
-    mean0, cov0 = check_inputs(measurements, prior)
-    model = measurements.model
-    dim, nd, n_ag, M, K = (
-        model.dim,
-        model.state_dim,
-        measurements.n_agents,
-        opt.n_particles,
-        measurements.n_steps,
-    )
-    N = n_ag * nd
-    lambdas, steps = _flow.lambda_schedule(opt.n_lambda, opt.lambda_ratio)
-    var = model.sigma_r**2
-    F, Q = model.matrices()
-    Ft = np.kron(np.eye(n_ag), F)  # PF-BP eq. (46)
-    W = np.kron(np.eye(n_ag), Q)  # PF-BP eq. (47)
-    Sr = None
-    if opt.regularize:
-        Sr = np.kron(np.eye(n_ag), model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc))
-    local = np.arange(n_ag, dtype=np.int64)
+    check_inputs(measurements, prior)
+    return track(measurements, prior, rng, EDHUpdate(measurements.model, opt))
 
-    X = sample_gaussian(mean0, cov0, M, rng).transpose(1, 0, 2).reshape(M, N)
-    P = block_diag(*cov0)
-    out_mean = np.empty((K, n_ag, nd))
-    out_cov = np.empty((K, n_ag, nd, nd))
-    step_s = np.empty(K)
-    for k in range(K):
-        anchors = measurements.anchors_at(k)
-        t0 = time.perf_counter()
-        X0 = model.predict_particles(X.reshape(M, n_ag, nd), rng).reshape(M, N)
-        P_pred = Ft @ P @ Ft.T + W  # PF-BP eq. (45)
-        rx, tx, zz = all_measurements(measurements.z[k])
+
+class EDHUpdate(Update):
+    """One time step of the EDH filter for :func:`~phyloc.localization.tracking.loop.track`:
+    ``M`` particles of the joint state (``[M, n_agents, N_D]``) and its joint covariance, one
+    centralized update by every range of the step (no message passing).
+
+    Parameters
+    ----------
+    model : RangeModel
+    options : PFBPOptions
+    """
+
+    label = "edh"
+    distributed = False
+    #: One joint update per step: ``agent_iterations = K · n_agents``.
+    iterations = 1
+
+    def __init__(self, model, options: PFBPOptions):
+        super().__init__(model, options)
+        self._lambdas, self._steps = _flow.lambda_schedule(options.n_lambda, options.lambda_ratio)
+        self._var = model.sigma_r**2
+        self._Sr = None
+        if options.regularize:  # PF-BP eq. (32), per agent
+            self._Sr = model.regularization_cov(options.reg_std_vel, options.reg_std_acc)
+
+    def initial(self, mean0, cov0, rng) -> Belief:
+        """Joint particles from the independent priors; the block-diagonal joint covariance."""
+        X = sample_gaussian(mean0, cov0, self.options.n_particles, rng)
+        return Belief(
+            particles=np.ascontiguousarray(X.transpose(1, 0, 2)), cov=block_diag(*cov0), joint=True
+        )
+
+    def update(self, pred, z_k, anchors_k, rng) -> Belief:
+        """Flow the predicted joint particles (PF-BP eq. (1)) from the predicted covariance
+        (PF-BP eq. (45)) by every range of the step; weight, resample, UKF covariance."""
+        model = self.model
+        dim, nd = model.dim, model.state_dim
+        M, n_ag, _ = pred.particles.shape
+        N = n_ag * nd
+        X0, P_pred = pred.particles.reshape(M, N), pred.cov
+        rx, tx, zz = all_measurements(z_k)
         if zz.size == 0:
             X, P = X0, P_pred
         else:
-            off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, anchors, dim, nd)
-            r_var = np.full(zz.size, var)
+            local = np.arange(n_ag, dtype=np.int64)
+            off_a, off_b, apos, zz = _flow.flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
+            r_var = np.full(zz.size, self._var)
             x_bar = X0.mean(axis=0)
-            # PF-BP eqs. (42), (43)
-            X1, _ = _flow.run_flow(
-                X0, x_bar, P_pred, off_a, off_b, apos, zz, r_var, dim, N, lambdas, steps
-            )
-            ll = _flow.stacked_loglik(X1, off_a, off_b, apos, zz, 1.0 / var, dim)
+            X1, _ = _flow.run_flow(  # PF-BP eqs. (42), (43)
+                X0, x_bar, P_pred, off_a, off_b, apos, zz, r_var, dim, N,
+                self._lambdas, self._steps,
+            )  # fmt: skip
+            ll = _flow.stacked_loglik(X1, off_a, off_b, apos, zz, 1.0 / self._var, dim)
             lw = _flow.invertible_flow_log_weights(X0, X1, x_bar, P_pred, ll)  # PF-BP eq. (44)
             X = resample_permute(X1, lw, rng)
             P = _flow.ukf_covariance_update(
                 X.mean(axis=0), P_pred, off_a, off_b, apos, r_var, dim, N
             )  # PF-BP eq. (49)
-        if Sr is not None:
+        if self._Sr is not None:
+            Sr = np.kron(np.eye(n_ag), self._Sr)
             X = regularize(X, Sr, rng)
             P = P + Sr
-        out_mean[k] = X.mean(axis=0).reshape(n_ag, nd)
+        return Belief(particles=X.reshape(M, n_ag, nd), cov=P, joint=True)
+
+    def estimate(self, belief):
+        """The per-agent blocks of the joint sample mean and covariance."""
+        M, n_ag, nd = belief.particles.shape
+        mean = belief.particles.reshape(M, n_ag * nd).mean(axis=0).reshape(n_ag, nd)
+        cov = np.empty((n_ag, nd, nd))
         for i in range(n_ag):
-            out_cov[k, i] = P[i * nd : (i + 1) * nd, i * nd : (i + 1) * nd]
-        step_s[k] = time.perf_counter() - t0
-    timing = Timing(time.perf_counter() - t_start, step_s, np.full(K, np.nan), K * n_ag)
-    return Result(
-        out_mean,
-        out_cov,
-        timing,
-        particles=np.ascontiguousarray(X.reshape(M, n_ag, nd).transpose(1, 0, 2)),
-        log_weights=np.full((n_ag, M), -np.log(M)),
-        diagnostics={"floats_per_link_iteration": message_floats("none", nd)},  # centralized
-        label="edh",
-    )
+            cov[i] = belief.cov[i * nd : (i + 1) * nd, i * nd : (i + 1) * nd]
+        return mean, cov
+
+    def floats_per_link_iteration(self) -> float:
+        """None: a centralized filter exchanges no beliefs (NaN)."""
+        return message_floats("none", self.model.state_dim)

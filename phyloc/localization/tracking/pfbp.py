@@ -14,6 +14,10 @@ Every agent ``i`` holds ``M`` equally weighted particles and a covariance ``P_i`
    eqs. (32), (33));
 3. the estimate is the sample mean (PF-BP eq. (20), line 20).
 
+Steps 1 and 3 and the bookkeeping are the family's loop
+(:func:`~phyloc.localization.tracking.loop.track`); this module supplies
+:class:`PFBPUpdate`, step 2.
+
 Implementation notes (deviations are marked):
 
 - The prior-density ratio of PF-BP eq. (22) uses the Gaussian ``N(x̄_{λ=0,i}, P_i^{(k|k−1)})``
@@ -35,7 +39,6 @@ cooperative localization and navigation with embedded particle flow."
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,20 +48,24 @@ from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
 from phyloc.localization.particles import regularize, resample_permute
-from phyloc.localization.results import Result, Timing
+from phyloc.localization.results import Result
 from phyloc.localization.tracking import _flow
-from phyloc.localization.tracking.range_models import (
+from phyloc.localization.tracking.loop import (
+    Belief,
+    Tracker,
+    Update,
+    check_inputs,
+    check_run_args,
+    message_floats,
+    message_passing,
+    track,
+)
+from phyloc.localization.tracking.measurements import (
     FACTORS,
-    GaussianPrior,
     RangeMeasurements,
     agent_measurements,
-    check_inputs,
-    check_prior,
-    check_run_args,
-    flow_links,
-    message_floats,
-    sample_gaussian,
 )
+from phyloc.localization.tracking.priors import GaussianPrior, sample_gaussian
 
 EXCHANGES = ("particles", "gaussian")
 
@@ -147,7 +154,7 @@ def run_pfbp(
         ``log_weights``; ``timing.step_s`` per time step, ``agent_s = step_s / n_agents``,
         ``agent_iterations = K · U · n_agents``; ``diagnostics["floats_per_link_iteration"]``,
         what one agent sends a neighbour per message-passing iteration
-        (:func:`~phyloc.localization.tracking.range_models.message_floats`: particles and
+        (:func:`~phyloc.localization.tracking.loop.message_floats`: particles and
         covariance, or mean and covariance with ``exchange = "gaussian"``).
 
     Examples
@@ -162,44 +169,111 @@ def run_pfbp(
     >>> res.estimates.shape, res.particles.shape
     ((2, 1, 2), (1, 100, 2))
     """
-    t_start = time.perf_counter()
     opt = check_run_args(options, PFBPOptions, rng)
     check_inputs(measurements, prior)
-    tracker = PFBPTracker(measurements.model, prior, rng, opt)
-    nd, n_ag, K = measurements.model.state_dim, measurements.n_agents, measurements.n_steps
-    out_mean = np.empty((K, n_ag, nd))
-    out_cov = np.empty((K, n_ag, nd, nd))
-    step_s = np.empty(K)
-    for k in range(K):
-        t0 = time.perf_counter()
-        out_mean[k], out_cov[k] = tracker.step(measurements.z[k], measurements.anchors_at(k))
-        step_s[k] = time.perf_counter() - t0
-    timing = Timing(
-        time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
-    )
-    M = opt.n_particles
-    return Result(
-        out_mean,
-        out_cov,
-        timing,
-        particles=tracker.particles,
-        log_weights=np.full((n_ag, M), -np.log(M)),
-        diagnostics={"floats_per_link_iteration": _floats(opt, nd)},
-        label="pfbp",
-    )
+    return track(measurements, prior, rng, PFBPUpdate(measurements.model, opt))
 
 
-def _floats(opt: PFBPOptions, nd: int) -> float:
-    """What a PF-BP agent sends a neighbour per iteration (PF-BP §VI; ``opt.exchange``)."""
-    if opt.exchange == "gaussian":
-        return message_floats("gaussian", nd)
-    return message_floats("particles+cov", nd, opt.n_particles)
+class PFBPUpdate(Update):
+    """One time step of PF-BP for :func:`~phyloc.localization.tracking.loop.track`: particles
+    and a UKF covariance per agent, ``U`` iterations of PF-BP Algorithm 1, lines 10–18.
+
+    Parameters
+    ----------
+    model : RangeModel
+    options : PFBPOptions
+    """
+
+    label = "pfbp"
+
+    def __init__(self, model, options: PFBPOptions):
+        super().__init__(model, options)
+        self._lambdas, self._steps = _flow.lambda_schedule(options.n_lambda, options.lambda_ratio)
+        self._var = model.sigma_r**2
+        self._Sr = None
+        if options.regularize:  # PF-BP eq. (32)
+            self._Sr = model.regularization_cov(options.reg_std_vel, options.reg_std_acc)
+
+    def initial(self, mean0, cov0, rng) -> Belief:
+        """Particles drawn from the prior (PF-BP Algorithm 1, lines 1–4) and its covariance."""
+        return Belief(
+            particles=sample_gaussian(mean0, cov0, self.options.n_particles, rng), cov=cov0
+        )
+
+    def update(self, pred, z_k, anchors_k, rng) -> Belief:
+        """Lines 10–18: all agents in parallel from the predicted particles ``pred.particles``
+        (line 7, PF-BP eq. (1)) and covariances ``pred.cov`` (PF-BP eq. (29))."""
+        X0, P_pred = pred.particles, pred.cov
+
+        def share(_u, chi, P_bel):
+            # what each agent broadcasts: its belief's particles, or only its mean (+ P_bel);
+            # each broadcast belief's Cholesky factor once, not once per receiving agent
+            if self.options.exchange != "gaussian":
+                return None
+            return chi.mean(axis=1), np.stack([_flow.robust_cholesky(c) for c in P_bel])
+
+        def agent(i, chi, P_bel, means):
+            return self._agent_update(i, z_k, anchors_k, X0, P_pred, chi, P_bel, rng, means)
+
+        chi, P_bel = message_passing(self.options.n_iterations, (X0, P_pred), agent, share)
+        return Belief(particles=chi, cov=P_bel)
+
+    def estimate(self, belief):
+        """Sample means (PF-BP eq. (20), line 20) and the UKF covariances."""
+        return belief.particles.mean(axis=1), belief.cov.copy()
+
+    def floats_per_link_iteration(self) -> float:
+        """What a PF-BP agent sends a neighbour per iteration (PF-BP §VI; ``exchange``)."""
+        if self.options.exchange == "gaussian":
+            return message_floats("gaussian", self.model.state_dim)
+        return message_floats("particles+cov", self.model.state_dim, self.options.n_particles)
+
+    def _agent_update(self, i, z_k, anchors_k, X0, P_pred, chi, P_bel, rng, means):
+        """One belief update of agent ``i`` (PF-BP Algorithm 1, lines 12–16). With ``means`` =
+        (mean, Cholesky factor of ``P_bel``) per agent (``exchange = "gaussian"``) the
+        neighbours' particles are drawn here from ``N(mean_j, P_bel[j])``: ``chi[j]`` itself is
+        not read."""
+        model, opt, var, Sr = self.model, self.options, self._var, self._Sr
+        dim, nd, n_ag = model.dim, model.state_dim, X0.shape[0]
+        rx, tx, zz, partners = agent_measurements(z_k, i, opt.factors)
+        if zz.size == 0:
+            xi, Pi = X0[i], P_pred[i]
+        else:
+            local = np.full(n_ag, -1, dtype=np.int64)
+            local[i] = 0
+            local[partners] = np.arange(1, partners.size + 1)
+            off_a, off_b, apos, zz = _flow.flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
+            if means is None or partners.size == 0:
+                nb = [chi[j] for j in partners]
+            else:  # PF-BP §VI: sample the neighbours' Gaussian beliefs locally
+                mu, L = means[0][partners], means[1][partners]
+                w = rng.standard_normal((partners.size, X0.shape[1], nd))
+                nb = list(mu[:, None, :] + np.einsum("aij,anj->ani", L, w))
+            beta = np.concatenate([X0[i], *nb], axis=1)  # PF-BP eq. (21)
+            P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # PF-BP eq. (28)
+            beta_bar = beta.mean(axis=0)
+            r_var = np.full(zz.size, var)
+            B1, _ = _flow.run_flow(  # PF-BP eqs. (21), (23)–(27)
+                beta, beta_bar, P_t, off_a, off_b, apos, zz, r_var, dim, nd,
+                self._lambdas, self._steps,
+            )  # fmt: skip
+            ll = _flow.stacked_loglik(B1, off_a, off_b, apos, zz, 1.0 / var, dim)
+            lw = _flow.invertible_flow_log_weights(X0[i], B1[:, :nd], beta_bar[:nd], P_pred[i], ll)
+            xi = resample_permute(B1[:, :nd], lw, rng)  # PF-BP eq. (22), line 13
+            at = np.concatenate([xi.mean(axis=0), beta_bar[nd:]])
+            # PF-BP eq. (30)
+            Pi = _flow.ukf_covariance_update(at, P_t, off_a, off_b, apos, r_var, dim, nd)
+        if Sr is not None:  # PF-BP eq. (33), line 16
+            xi = regularize(xi, Sr, rng)
+            Pi = Pi + Sr
+        return xi, Pi
 
 
-class PFBPTracker:
-    """PF-BP one time step at a time: the loop of :func:`run_pfbp` for a closed loop whose
-    next measurements depend on the current beliefs (e.g. anchors steered by
-    :mod:`phyloc.control`). The particles carry over between steps.
+class PFBPTracker(Tracker):
+    """PF-BP one time step at a time (:class:`~phyloc.localization.tracking.loop.Tracker` with
+    :class:`PFBPUpdate`), for a closed loop whose next measurements depend on the current
+    beliefs (e.g. anchors steered by :mod:`phyloc.control`). The particles carry over between
+    steps.
 
     Parameters
     ----------
@@ -227,79 +301,5 @@ class PFBPTracker:
     """
 
     def __init__(self, model, prior: GaussianPrior, rng, options: PFBPOptions | None = None):
-        self.options = check_run_args(options, PFBPOptions, rng)
-        mean0, cov0 = check_prior(prior, model)
-        self.model, self.rng = model, rng
-        self._lambdas, self._steps = _flow.lambda_schedule(
-            self.options.n_lambda, self.options.lambda_ratio
-        )
-        self.particles = sample_gaussian(mean0, cov0, self.options.n_particles, rng)  # l. 1–4
-        self.cov = cov0
-
-    def step(self, z_k: np.ndarray, anchors_k: np.ndarray):
-        """Predict and update by one step's ranges ``z_k [n_agents, n_agents + n_anchors]``
-        with anchors at ``anchors_k [n_anchors, dim]``; returns ``(mean, cov)`` (copies):
-        the sample means (PF-BP eq. (20)) and the UKF covariances."""
-        model, opt, rng = self.model, self.options, self.rng
-        var = model.sigma_r**2
-        Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc) if opt.regularize else None
-        X0 = model.predict_particles(self.particles, rng)  # line 7, PF-BP eq. (1)
-        P_pred = model.predict_cov(self.cov)  # PF-BP eq. (29)
-        chi, P_bel = X0, P_pred
-        for _u in range(opt.n_iterations):  # lines 10–18, all agents in parallel
-            new_chi = np.empty_like(chi)
-            new_P = np.empty_like(P_bel)
-            # what each agent broadcasts: its belief's particles, or only its mean (+ P_bel);
-            # each broadcast belief's Cholesky factor once, not once per receiving agent
-            means = None
-            if opt.exchange == "gaussian":
-                means = (chi.mean(axis=1), np.stack([_flow.robust_cholesky(c) for c in P_bel]))
-            for i in range(chi.shape[0]):
-                new_chi[i], new_P[i] = _agent_update(
-                    i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt,
-                    self._lambdas, self._steps, var, Sr, rng, means,
-                )  # fmt: skip
-            chi, P_bel = new_chi, new_P
-        self.particles, self.cov = chi, P_bel
-        return chi.mean(axis=1), P_bel.copy()  # PF-BP eq. (20), line 20
-
-
-def _agent_update(
-    i, model, z_k, anchors_k, X0, P_pred, chi, P_bel, opt, lambdas, steps, var, Sr, rng, means
-):
-    """One belief update of agent ``i`` (PF-BP Algorithm 1, lines 12–16). With ``means`` =
-    (mean, Cholesky factor of ``P_bel``) per agent (``exchange = "gaussian"``) the neighbours'
-    particles are drawn here from ``N(mean_j, P_bel[j])``: ``chi[j]`` itself is not read."""
-    dim, nd, n_ag = model.dim, model.state_dim, X0.shape[0]
-    rx, tx, zz, partners = agent_measurements(z_k, i, opt.factors)
-    if zz.size == 0:
-        xi, Pi = X0[i], P_pred[i]
-    else:
-        local = np.full(n_ag, -1, dtype=np.int64)
-        local[i] = 0
-        local[partners] = np.arange(1, partners.size + 1)
-        off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
-        if means is None or partners.size == 0:
-            nb = [chi[j] for j in partners]
-        else:  # PF-BP §VI: sample the neighbours' Gaussian beliefs locally
-            mu, L = means[0][partners], means[1][partners]
-            w = rng.standard_normal((partners.size, X0.shape[1], nd))
-            nb = list(mu[:, None, :] + np.einsum("aij,anj->ani", L, w))
-        beta = np.concatenate([X0[i], *nb], axis=1)  # PF-BP eq. (21)
-        P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # PF-BP eq. (28)
-        beta_bar = beta.mean(axis=0)
-        r_var = np.full(zz.size, var)
-        # PF-BP eqs. (21), (23)–(27)
-        B1, _ = _flow.run_flow(
-            beta, beta_bar, P_t, off_a, off_b, apos, zz, r_var, dim, nd, lambdas, steps
-        )
-        ll = _flow.stacked_loglik(B1, off_a, off_b, apos, zz, 1.0 / var, dim)
-        lw = _flow.invertible_flow_log_weights(X0[i], B1[:, :nd], beta_bar[:nd], P_pred[i], ll)
-        xi = resample_permute(B1[:, :nd], lw, rng)  # PF-BP eq. (22), line 13
-        at = np.concatenate([xi.mean(axis=0), beta_bar[nd:]])
-        # PF-BP eq. (30)
-        Pi = _flow.ukf_covariance_update(at, P_t, off_a, off_b, apos, r_var, dim, nd)
-    if Sr is not None:  # PF-BP eq. (33), line 16
-        xi = regularize(xi, Sr, rng)
-        Pi = Pi + Sr
-    return xi, Pi
+        opt = check_run_args(options, PFBPOptions, rng)
+        super().__init__(PFBPUpdate(model, opt), prior, rng)

@@ -12,7 +12,8 @@ The cooperative message at particle ``m`` is estimated with one particle of the 
 belief, ``ν_j(x_i^m) ≈ f(z_ij | x_i^m, x_j^m)`` (neighbour particles randomly permuted after
 resampling), which keeps the cost O(M) per link as in PF-BP eq. (22), instead of the O(M²) sum
 over all neighbour particles. The estimate is the sample mean (PF-BP eq. (20)); the covariance
-is the sample covariance.
+is the sample covariance. The loop over time steps (prediction, estimates, timing) is
+:func:`~phyloc.localization.tracking.loop.track`; this module supplies :class:`SIRBPUpdate`.
 
 References
 ----------
@@ -23,7 +24,6 @@ cooperative localization and navigation with embedded particle flow."
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,19 +32,24 @@ from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
 from phyloc.localization.particles import regularize, resample_permute
-from phyloc.localization.results import Result, Timing
+from phyloc.localization.results import Result
 from phyloc.localization.tracking import _flow
 from phyloc.localization.tracking import _kernels as _tk
-from phyloc.localization.tracking.range_models import (
-    FACTORS,
-    GaussianPrior,
-    RangeMeasurements,
-    agent_measurements,
+from phyloc.localization.tracking.loop import (
+    Belief,
+    Update,
     check_inputs,
     check_run_args,
     message_floats,
-    sample_gaussian,
+    message_passing,
+    track,
 )
+from phyloc.localization.tracking.measurements import (
+    FACTORS,
+    RangeMeasurements,
+    agent_measurements,
+)
+from phyloc.localization.tracking.priors import GaussianPrior, sample_gaussian
 
 
 @dataclass(frozen=True)
@@ -124,63 +129,82 @@ def run_sirbp(
     >>> res.estimates.shape
     (1, 1, 2)
     """
-    t_start = time.perf_counter()
     opt = check_run_args(options, SIRBPOptions, rng)
-    mean0, cov0 = check_inputs(measurements, prior)
-    model = measurements.model
-    dim, nd, n_ag, M, K = (
-        model.dim,
-        model.state_dim,
-        measurements.n_agents,
-        opt.n_particles,
-        measurements.n_steps,
-    )
-    inv_var = 1.0 / model.sigma_r**2
-    Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc) if opt.regularize else None
-
-    X = sample_gaussian(mean0, cov0, M, rng)
+    check_inputs(measurements, prior)
+    bounds = None
     if opt.uniform_positions and measurements.n_anchors > 0:
-        lo, hi = measurements.anchor_bounds()
-        X[..., :dim] = rng.uniform(lo, hi, size=(n_ag, M, dim))
-    out_mean = np.empty((K, n_ag, nd))
-    out_cov = np.empty((K, n_ag, nd, nd))
-    step_s = np.empty(K)
-    for k in range(K):
-        t0 = time.perf_counter()
-        X0 = model.predict_particles(X, rng)  # η, PF-BP eq. (15)
+        bounds = measurements.anchor_bounds()
+    return track(measurements, prior, rng, SIRBPUpdate(measurements.model, opt, bounds))
+
+
+class SIRBPUpdate(Update):
+    """One time step of SIR-BP for :func:`~phyloc.localization.tracking.loop.track`: ``M``
+    equally weighted particles per agent, weighted by the messages of PF-BP eqs. (16)–(19) and
+    resampled, ``U`` iterations.
+
+    Parameters
+    ----------
+    model : RangeModel
+    options : SIRBPOptions
+    anchor_bounds : (lo, hi) of [dim] float, optional
+        Box of the uniformly drawn initial positions (``uniform_positions``, PF-BP §VI); None:
+        the positions are drawn from the Gaussian prior.
+    """
+
+    label = "sirbp"
+
+    def __init__(self, model, options: SIRBPOptions, anchor_bounds=None):
+        super().__init__(model, options)
+        self.anchor_bounds = anchor_bounds
+        self._inv_var = 1.0 / model.sigma_r**2
+        self._Sr = None
+        if options.regularize:  # PF-BP eq. (32)
+            self._Sr = model.regularization_cov(options.reg_std_vel, options.reg_std_acc)
+
+    def initial(self, mean0, cov0, rng) -> Belief:
+        """Particles from the prior; positions uniform in ``anchor_bounds`` when given."""
+        X = sample_gaussian(mean0, cov0, self.options.n_particles, rng)
+        if self.anchor_bounds is not None:
+            lo, hi = self.anchor_bounds
+            X[..., : self.model.dim] = rng.uniform(lo, hi, size=(*X.shape[:2], self.model.dim))
+        return Belief(particles=X)
+
+    def update(self, pred, z_k, anchors_k, rng) -> Belief:
+        """Weight the predicted particles ``pred.particles`` (η, PF-BP eq. (15)) by the messages
+        and resample, all agents in parallel."""
+        dim, Sr = self.model.dim, self._Sr
+        X0 = pred.particles
+        n_ag, M = X0.shape[:2]
         pos0 = np.ascontiguousarray(X0[..., :dim])
-        chi_pos = pos0
-        chi = X0
-        for _u in range(opt.n_iterations):
-            new_chi = np.empty_like(chi)
-            for i in range(n_ag):
-                rx, tx, zz, _ = agent_measurements(measurements.z[k], i, opt.factors)
-                lw = np.zeros(M)
-                for a, b, zq in zip(rx, tx, zz, strict=True):
-                    other = b if a == i else a  # the node that is not i
-                    if other >= n_ag:
-                        y = measurements.anchors_at(k)[other - n_ag][None]  # PF-BP eq. (16)
-                    else:
-                        y = chi_pos[other]  # belief of j at u − 1, PF-BP eqs. (17)–(19)
-                    _flow.paired_range_loglik_kernel(pos0[i], y, float(zq), inv_var, lw)
-                if zz.size:  # resampling, then the jitter of PF-BP eq. (32), jittered block only
-                    new_chi[i] = resample_permute(X0[i], lw, rng, Sr)
+
+        def share(u, chi):  # the neighbours' particle positions of iteration u − 1
+            return pos0 if u == 0 else np.ascontiguousarray(chi[..., :dim])
+
+        def agent(i, _chi, chi_pos):
+            rx, tx, zz, _ = agent_measurements(z_k, i, self.options.factors)
+            lw = np.zeros(M)
+            for a, b, zq in zip(rx, tx, zz, strict=True):
+                other = b if a == i else a  # the node that is not i
+                if other >= n_ag:
+                    y = anchors_k[other - n_ag][None]  # PF-BP eq. (16)
                 else:
-                    new_chi[i] = X0[i] if Sr is None else regularize(X0[i], Sr, rng)
-            chi = new_chi
-            chi_pos = np.ascontiguousarray(chi[..., :dim])
-        X = chi
-        _tk.mean_cov_kernel(X, out_mean[k], out_cov[k])  # PF-BP eq. (20), no [M, N_D] temporary
-        step_s[k] = time.perf_counter() - t0
-    timing = Timing(
-        time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
-    )
-    return Result(
-        out_mean,
-        out_cov,
-        timing,
-        particles=X,
-        log_weights=np.full((n_ag, M), -np.log(M)),
-        diagnostics={"floats_per_link_iteration": message_floats("positions", nd, M, dim)},
-        label="sirbp",
-    )
+                    y = chi_pos[other]  # belief of j at u − 1, PF-BP eqs. (17)–(19)
+                _flow.paired_range_loglik_kernel(pos0[i], y, float(zq), self._inv_var, lw)
+            if zz.size:  # resampling, then the jitter of PF-BP eq. (32), jittered block only
+                return (resample_permute(X0[i], lw, rng, Sr),)
+            return (X0[i] if Sr is None else regularize(X0[i], Sr, rng),)
+
+        (chi,) = message_passing(self.options.n_iterations, (X0,), agent, share)
+        return Belief(particles=chi)
+
+    def estimate(self, belief):
+        """Sample means (PF-BP eq. (20)) and covariances, without a ``[M, N_D]`` temporary."""
+        n_ag, _, nd = belief.particles.shape
+        mean, cov = np.empty((n_ag, nd)), np.empty((n_ag, nd, nd))
+        _tk.mean_cov_kernel(belief.particles, mean, cov)
+        return mean, cov
+
+    def floats_per_link_iteration(self) -> float:
+        """The ``M`` particle positions a neighbour's range factor reads."""
+        nd, dim = self.model.state_dim, self.model.dim
+        return message_floats("positions", nd, self.options.n_particles, dim)

@@ -19,6 +19,9 @@ holds a Gaussian belief ``N(x̂_i, P_i)``. Per time step:
 
 3. the estimate is ``x̂_i``.
 
+Steps 1 and 3 are the family's loop (:func:`~phyloc.localization.tracking.loop.track`); this
+module supplies :class:`SPBPUpdate`, step 2.
+
 The sigma points are those of the PF-BP UKF covariance step
 (:func:`~phyloc.localization.tracking._flow.ukf_covariance_update`, PF-BP eq. (30)):
 ``β̄ ± √n L_j`` with ``L Lᵀ = P̃_i`` (Cholesky), weights ``1/(2n)``, no centre point (Julier's
@@ -40,7 +43,6 @@ Processing Letters 21(2), pp. 145–149, 2014.
 from __future__ import annotations
 
 import dataclasses
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,19 +51,24 @@ from scipy.linalg import block_diag
 from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.localization.results import Result, Timing
+from phyloc.localization.results import Result
 from phyloc.localization.tracking import _flow
-from phyloc.localization.tracking.range_models import (
+from phyloc.localization.tracking.loop import (
+    Belief,
+    Tracker,
+    Update,
+    check_inputs,
+    check_run_args,
+    message_floats,
+    message_passing,
+    track,
+)
+from phyloc.localization.tracking.measurements import (
     FACTORS,
-    GaussianPrior,
     RangeMeasurements,
     agent_measurements,
-    check_inputs,
-    check_prior,
-    check_run_args,
-    flow_links,
-    message_floats,
 )
+from phyloc.localization.tracking.priors import GaussianPrior
 
 
 @dataclass(frozen=True)
@@ -176,7 +183,7 @@ def run_spbp(
         beliefs), no particles; ``timing.agent_s = step_s / n_agents``,
         ``agent_iterations = K · U · n_agents``; ``label="spbp"``;
         ``diagnostics["floats_per_link_iteration"]``: a Gaussian belief, mean and covariance
-        (:func:`~phyloc.localization.tracking.range_models.message_floats`).
+        (:func:`~phyloc.localization.tracking.loop.message_floats`).
 
     Examples
     --------
@@ -189,31 +196,75 @@ def run_spbp(
     >>> run_spbp(meas, prior).estimates.shape
     (2, 1, 2)
     """
-    t_start = time.perf_counter()
     opt = check_run_args(options, SPBPOptions, rng, rng_required=False)
     check_inputs(measurements, prior)
-    tracker = SPBPTracker(measurements.model, prior, options=opt)
-    K, n_ag = measurements.n_steps, measurements.n_agents
-    out_mean = np.empty((K, n_ag, tracker.model.state_dim))
-    out_cov = np.empty((K, n_ag, tracker.model.state_dim, tracker.model.state_dim))
-    step_s = np.empty(K)
-    for k in range(K):
-        t0 = time.perf_counter()
-        out_mean[k], out_cov[k] = tracker.step(measurements.z[k], measurements.anchors_at(k))
-        step_s[k] = time.perf_counter() - t0
-    timing = Timing(
-        time.perf_counter() - t_start, step_s, step_s / n_ag, K * opt.n_iterations * n_ag
-    )
-    floats = message_floats("gaussian", tracker.model.state_dim)
-    return Result(
-        out_mean, out_cov, timing, diagnostics={"floats_per_link_iteration": floats}, label="spbp"
-    )
+    return track(measurements, prior, rng, SPBPUpdate(measurements.model, opt))
 
 
-class SPBPTracker:
-    """SP-BP one time step at a time: the loop of :func:`run_spbp` for a closed loop whose
-    next measurements depend on the current beliefs (e.g. anchors steered by
-    :mod:`phyloc.control`).
+class SPBPUpdate(Update):
+    """One time step of SP-BP for :func:`~phyloc.localization.tracking.loop.track`: a Gaussian
+    belief per agent, ``U`` iterations of unscented message products (deterministic).
+
+    Parameters
+    ----------
+    model : RangeModel
+    options : SPBPOptions
+    """
+
+    label = "spbp"
+
+    def __init__(self, model, options: SPBPOptions):
+        super().__init__(model, options)
+        self._var = model.sigma_r**2
+        self._Sr = None
+        if options.regularize:  # PF-BP eq. (32)
+            self._Sr = model.regularization_cov(options.reg_std_vel, options.reg_std_acc)
+
+    def initial(self, mean0, cov0, rng) -> Belief:
+        """The prior itself."""
+        return Belief(mean=mean0, cov=cov0)
+
+    def update(self, pred, z_k, anchors_k, rng) -> Belief:
+        """All agents in parallel from the predicted ``pred.mean`` (PF-BP eq. (1)) and
+        ``pred.cov`` (PF-BP eq. (29))."""
+        x_pred, P_pred = pred.mean, pred.cov
+
+        def agent(i, x_bel, P_bel, _shared):
+            x, P = self._agent_update(i, z_k, anchors_k, x_pred, P_pred, x_bel, P_bel)
+            return x, (P if self._Sr is None else P + self._Sr)  # PF-BP eq. (33)
+
+        x_bel, P_bel = message_passing(self.options.n_iterations, (x_pred, P_pred), agent)
+        return Belief(mean=x_bel, cov=P_bel)
+
+    def estimate(self, belief):
+        """The Gaussian beliefs (copies)."""
+        return belief.mean.copy(), belief.cov.copy()
+
+    def floats_per_link_iteration(self) -> float:
+        """A Gaussian belief: mean and covariance."""
+        return message_floats("gaussian", self.model.state_dim)
+
+    def _agent_update(self, i, z_k, anchors_k, x_pred, P_pred, x_bel, P_bel):
+        """One belief update of agent ``i``: unscented product of its prediction and the
+        messages."""
+        dim, nd, n_ag = self.model.dim, self.model.state_dim, x_pred.shape[0]
+        rx, tx, zz, partners = agent_measurements(z_k, i, self.options.factors)
+        if zz.size == 0:
+            return x_pred[i], P_pred[i]
+        local = np.full(n_ag, -1, dtype=np.int64)
+        local[i] = 0
+        local[partners] = np.arange(1, partners.size + 1)
+        off_a, off_b, apos, zz = _flow.flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
+        beta = np.concatenate([x_pred[i]] + [x_bel[j] for j in partners])  # β̄
+        P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # as PF-BP eq. (28)
+        r_var = np.full(zz.size, self._var)
+        return unscented_range_update(beta, P_t, off_a, off_b, apos, zz, r_var, dim, nd)
+
+
+class SPBPTracker(Tracker):
+    """SP-BP one time step at a time (:class:`~phyloc.localization.tracking.loop.Tracker` with
+    :class:`SPBPUpdate`), for a closed loop whose next measurements depend on the current
+    beliefs (e.g. anchors steered by :mod:`phyloc.control`).
 
     Parameters
     ----------
@@ -240,47 +291,5 @@ class SPBPTracker:
     """
 
     def __init__(self, model, prior: GaussianPrior, rng=None, options: SPBPOptions | None = None):
-        self.options = check_run_args(options, SPBPOptions, rng, rng_required=False)
-        self.mean, self.cov = check_prior(prior, model)
-        self.model = model
-
-    def step(self, z_k: np.ndarray, anchors_k: np.ndarray):
-        """Predict and update by one step's ranges ``z_k [n_agents, n_agents + n_anchors]``
-        with anchors at ``anchors_k [n_anchors, dim]``; returns ``(mean, cov)`` (copies)."""
-        model, opt = self.model, self.options
-        F, _ = model.matrices()
-        Sr = None
-        if opt.regularize:
-            Sr = model.regularization_cov(opt.reg_std_vel, opt.reg_std_acc)
-        var = model.sigma_r**2
-        x_pred = self.mean @ F.T  # PF-BP eq. (1)
-        P_pred = model.predict_cov(self.cov)  # PF-BP eq. (29)
-        x_bel, P_bel = x_pred, P_pred
-        for _u in range(opt.n_iterations):  # all agents in parallel
-            new_x = np.empty_like(x_bel)
-            new_P = np.empty_like(P_bel)
-            for i in range(x_bel.shape[0]):
-                new_x[i], new_P[i] = _agent_update(
-                    i, model, z_k, anchors_k, x_pred, P_pred, x_bel, P_bel, opt.factors, var
-                )
-                if Sr is not None:  # PF-BP eq. (33)
-                    new_P[i] += Sr
-            x_bel, P_bel = new_x, new_P
-        self.mean, self.cov = x_bel, P_bel
-        return x_bel.copy(), P_bel.copy()
-
-
-def _agent_update(i, model, z_k, anchors_k, x_pred, P_pred, x_bel, P_bel, factors, var):
-    """One belief update of agent ``i``: unscented product of its prediction and the messages."""
-    dim, nd, n_ag = model.dim, model.state_dim, x_pred.shape[0]
-    rx, tx, zz, partners = agent_measurements(z_k, i, factors)
-    if zz.size == 0:
-        return x_pred[i], P_pred[i]
-    local = np.full(n_ag, -1, dtype=np.int64)
-    local[i] = 0
-    local[partners] = np.arange(1, partners.size + 1)
-    off_a, off_b, apos, zz = flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
-    beta = np.concatenate([x_pred[i]] + [x_bel[j] for j in partners])  # β̄
-    P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # as PF-BP eq. (28)
-    r_var = np.full(zz.size, var)
-    return unscented_range_update(beta, P_t, off_a, off_b, apos, zz, r_var, dim, nd)
+        opt = check_run_args(options, SPBPOptions, rng, rng_required=False)
+        super().__init__(SPBPUpdate(model, opt), prior, rng)
