@@ -19,17 +19,17 @@ result. Schemes (the ``<scheme>`` of the figure names):
                       Q² joint grid, evaluated exhaustively (one "iteration"; per agent = total/2)
 ``sampled``           one weighting sweep of the sample-based exchange: neighbours' particle
                       sets through the direct likelihood of DiPNet eq. (22) in its peak-mixture
-                      form (:class:`~phyloc.localization.likelihoods.SampledLikelihood` over
-                      :class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`, the
+                      form (:class:`~phyloc.localization.direct.sampled_exchange.SampledLikelihood` over
+                      :class:`~phyloc.localization.direct.likelihoods.MarginalDirectLikelihood`, the
                       likelihood of ``dpe_sampled``)
 ``el``                one weighting sweep of the EL, DiPNet eqs. (25)–(26), from the neighbours'
-                      moments (:class:`~phyloc.localization.likelihoods.DirectLikelihood`)
+                      moments (:class:`~phyloc.localization.direct.likelihoods.DirectLikelihood`)
 ``dipnet_published``  a full agent-iteration of the registered method (DiPNet Algorithm 1)
 ``dipnet``            a full agent-iteration of the registered, safeguarded method (tempering
                       steps and Metropolis–Hastings moves re-evaluate the likelihood)
 
 Floats exchanged per link and iteration are read off the arrays the implementation passes:
-a :class:`~phyloc.localization.likelihoods.NodeBeliefs` row (``Q·(dim + 1)``: points and log
+a :class:`~phyloc.localization.direct.sampled_exchange.NodeBeliefs` row (``Q·(dim + 1)``: points and log
 weights, plus any per-node scalar it carries) for ``sampled``, the published mean and
 covariance (``dim + dim(dim + 1)/2``, the covariance being symmetric) for the moment exchange,
 the joint table (``Q^|M|``) for ``exact``; bytes are 8 per float (float64).
@@ -38,7 +38,8 @@ References
 ----------
 DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
 P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
-Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020 (§III-C, Table I).
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+(§III-C, Table I.)
 """
 
 from __future__ import annotations
@@ -60,11 +61,8 @@ from phyloc.localization import (
     gaussian_log_prior,
     gaussian_priors,
 )
-from phyloc.localization.likelihoods import (
-    MarginalDirectLikelihood,
-    NodeBeliefs,
-    SampledLikelihood,
-)
+from phyloc.localization.direct.likelihoods import MarginalDirectLikelihood
+from phyloc.localization.direct.sampled_exchange import NodeBeliefs, SampledLikelihood
 from phyloc.phy import C0, OFDMSystem, PathSet
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
@@ -336,7 +334,7 @@ def sampled_seconds(net, k, Q, rng, repeat, *, n_rx=2, min_time=None):
     """Seconds per agent-iteration of the sample-based weighting sweep and floats per link.
 
     ``n_rx`` agents receive (the per-agent cost does not depend on how many do); every node
-    publishes Q particles (:class:`~phyloc.localization.likelihoods.NodeBeliefs`).
+    publishes Q particles (:class:`~phyloc.localization.direct.sampled_exchange.NodeBeliefs`).
     """
     links, table = net.degree(k)
     n = net.n_agents

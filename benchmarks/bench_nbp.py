@@ -45,9 +45,8 @@ figures are not measured (``MISSING``).
 
 References
 ----------
-.. [1] R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-   Indoor Localization," IEEE Transactions on Signal and Information Processing over
-   Networks, vol. 5, no. 3, 2019 ("POA-NBP").
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 from __future__ import annotations
@@ -67,13 +66,11 @@ from phyloc.localization.static.gaussian_bp import (
     run_gaussian_bp,
     run_wls,
 )
-from phyloc.localization.static.nbp import (
-    NBPOptions,
-    lscv_bandwidth,
-    range_message_samples,
-    run_nbp,
-)
-from phyloc.localization.static.polygons import anchor_polygon, intersect, poa
+from phyloc.localization.static.kde import lscv_bandwidth
+from phyloc.localization.static.messages import range_message_samples
+from phyloc.localization.static.nbp import NBPOptions, run_nbp
+from phyloc.localization.static.poa_network import poa
+from phyloc.localization.static.polygons import anchor_polygon, intersect
 from phyloc.localization.static.static_ranges import ExponentialRangeError
 from phyloc.reporting import format_table
 

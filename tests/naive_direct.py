@@ -1,4 +1,5 @@
-"""Plain-NumPy twins of the direct family's numba kernels (``phyloc.localization._kernels``).
+"""Plain-NumPy twins of the localization kernels (``phyloc.localization.direct._kernels``,
+``phyloc.localization.direct._sampled_kernels`` and the shared ``phyloc.localization._kernels``).
 
 Test code only: tests import them (``from naive_direct import ...``) and
 ``benchmarks/bench_dipnet.py`` loads this file through ``benchmarks._reference.naive`` for its

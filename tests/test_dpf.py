@@ -29,12 +29,19 @@ from phyloc.localization.direct import (
     run,
     run_dpf,
 )
+from phyloc.localization.direct import _kernels as DK
 from phyloc.localization.direct.dpf import _floor
-from phyloc.localization.likelihoods import (
+from phyloc.localization.direct.likelihoods import (
+    TABLE_MARGIN,
+    TABLE_MAX_POINTS,
+    TABLE_RESOLUTION,
     DirectLikelihood,
     GaussianRangeLikelihood,
+    MarginalDirectLikelihood,
     projected_variances,
 )
+from phyloc.localization.direct.sampled_exchange import SampledLikelihood
+from phyloc.localization.likelihoods import IncomingLinks, Likelihood
 from phyloc.phy import C0, OFDMSystem, PathSet
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
@@ -121,6 +128,56 @@ def test_env_eq26_and_erv_eq18_by_hand(rng):
     assert g.loglik(X, centers, covs)[0, 0] == pytest.approx(by_hand + others, rel=1e-12)
 
 
+def test_every_link_likelihood_has_the_members_of_the_protocol(rng):
+    pos, is_anchor, links = single_agent_setup()
+    tab = awgn_network(pos, is_anchor, links, rng)
+    amap = agent_map(is_anchor)
+    ranges = (np.full(4, 50.0), np.full(4, 0.25), np.ones(4, bool))
+    liks = [
+        DirectLikelihood(tab, links, amap, 1),
+        MarginalDirectLikelihood(tab, links, amap, 1),
+        GaussianRangeLikelihood(*ranges, links, amap, 1),
+    ]
+    liks += [SampledLikelihood(lik) for lik in liks]
+    X = pos[None, :1] + rng.normal(0.0, 1.0, (1, 20, 2))
+    for lik in liks:
+        assert isinstance(lik, Likelihood)
+        assert isinstance(lik.csr, IncomingLinks) and lik.csr.offsets.tolist() == [0, 4]
+        assert lik.nu.shape == lik.csr.rx.shape == (4,)
+        assert lik.loglik(X, pos, np.zeros((5, 2, 2)), 0.5).shape == (1, 20)
+    assert not isinstance(types.SimpleNamespace(kind="x", csr=None), Likelihood)
+
+
+def test_the_numerics_seam_is_the_numerics_of_the_tables_and_estimators(rng):
+    """``lagrange_eval`` is the interpolation of ``CorrelationTable.evaluate``, and
+    ``correlate_derivs`` / ``newton_peak`` the peak refinement of the range estimators."""
+    from phyloc.phy import _kernels as phy_kernels
+    from phyloc.phy.correlation import lagrange_eval
+    from phyloc.ranging import _kernels as ranging_kernels
+    from phyloc.ranging.numerics import correlate_derivs, newton_peak
+
+    values = rng.normal(size=(3, 64)) + 1j * rng.normal(size=(3, 64))
+    rows, x = np.array([0, 1, 2, 1]), np.array([0.3, 17.9, 63.5, -2.2])
+    for order in (2, 4, 6):
+        ref = np.empty(4, np.complex128)
+        phy_kernels.interp_kernel(values, rows, x, order, ref)
+        got = [lagrange_eval(values, r, 64, xq, order) for r, xq in zip(rows, x, strict=True)]
+        np.testing.assert_array_equal(got, ref)
+    n0, w, spacing = -40.0, 2 * math.pi * 1e6 / C0, 0.4
+    n = n0 + np.arange(81)
+    spec = np.exp(1j * w * n[None, :] * np.array([[31.3], [77.05]]))  # peaks at 31.3, 77.05 m
+    d0 = np.array([31.2, 77.2])
+    ref = np.empty(2)
+    ranging_kernels.refine_kernel(spec, n0, w, d0, spacing, 8, ref)
+    got = [newton_peak(spec[i], n0, w, d0[i], spacing, 8) for i in range(2)]
+    np.testing.assert_array_equal(got, ref)
+    np.testing.assert_allclose(got, [31.3, 77.05], atol=1e-9)
+    for i in range(2):
+        assert correlate_derivs(spec[i], n0, w, got[i]) == ranging_kernels._correlate_derivs(
+            spec[i], n0, w, got[i]
+        )
+
+
 # -- kernels against their twins -----------------------------------------------------------------
 @pytest.mark.parametrize("dim", [1, 2, 3])  # the planar and spatial distance loops are unrolled
 def test_loglik_kernels_match_numpy_twins(rng, dim):
@@ -132,25 +189,25 @@ def test_loglik_kernels_match_numpy_twins(rng, dim):
     values = rng.standard_normal((5, 400)) + 1j * rng.standard_normal((5, 400))
     scale = rng.uniform(0.1, 2, 5)
     out = np.empty((n_agents, Q))
-    K.direct_loglik_kernel(X, offsets, nb, np.arange(5), scale, centers, values, 1.3, 4, out)
+    DK.direct_loglik_kernel(X, offsets, nb, np.arange(5), scale, centers, values, 1.3, 4, out)
     ref = direct_loglik_numpy(X, offsets, nb, np.arange(5), scale, centers, values, 1.3, 4)
     np.testing.assert_allclose(out, ref, rtol=1e-12)
     assert np.all(out[1] == 0)
     r, iv = rng.uniform(10, 90, 5), rng.uniform(0.1, 3, 5)
-    K.gauss_loglik_kernel(X, np.arange(n_agents), offsets, nb, r, iv, centers, out)
+    DK.gauss_loglik_kernel(X, np.arange(n_agents), offsets, nb, r, iv, centers, out)
     np.testing.assert_allclose(out, gauss_loglik_numpy(X, offsets, nb, r, iv, centers), rtol=1e-12)
     sub = np.empty((2, Q))  # a subset of the agents, in any order
-    K.gauss_loglik_kernel(X[[2, 0]], np.array([2, 0]), offsets, nb, r, iv, centers, sub)
+    DK.gauss_loglik_kernel(X[[2, 0]], np.array([2, 0]), offsets, nb, r, iv, centers, sub)
     np.testing.assert_array_equal(sub, out[[2, 0]])
     for gamma in (0.7, 0.0):  # the outlier mixture, tempered (inv_var carries γ)
-        K.gauss_loglik_kernel(
+        DK.gauss_loglik_kernel(
             X, np.arange(n_agents), offsets, nb, r, gamma * iv, centers, out, 4.0, gamma
         )
         ref = gauss_loglik_numpy(X, offsets, nb, r, gamma * iv, centers, 4.0, gamma)
         np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-300)
         assert np.all(out >= -gamma * 4.0 * np.diff(offsets)[:, None] - 1e-12)
         # one-sided: the same mixture where d < r, the Gaussian's pull where d > r
-        K.gauss_loglik_kernel(
+        DK.gauss_loglik_kernel(
             X, np.arange(n_agents), offsets, nb, r, gamma * iv, centers, out, 4.0, gamma, True
         )
         ref = gauss_loglik_numpy(X, offsets, nb, r, gamma * iv, centers, 4.0, gamma, True)
@@ -323,7 +380,7 @@ def test_same_seed_same_result_with_any_thread_count():
 # -- the marginal equivalent likelihood ---------------------------------------------------------
 @pytest.mark.parametrize("dim", [1, 2, 3])
 def test_mixture_kernel_matches_numpy_twin(rng, dim):
-    from phyloc.localization._kernels import mixture_loglik_kernel
+    from phyloc.localization.direct._kernels import mixture_loglik_kernel
 
     n_agents, Q = 3, 40
     X = rng.uniform(0, 100, (n_agents, Q, dim))
@@ -374,8 +431,6 @@ def random_mixture(rng, n_agents=3, n_centers=7, dim=2):
 def test_tabulated_mixture_kernels_match_their_twins(rng, dim):
     """Grid, table and interpolation kernels against the NumPy twins, on an agent subset: the
     kernel's power-basis cubic pieces (Horner) against the twin's Lagrange weights."""
-    from phyloc.localization.likelihoods import TABLE_MARGIN, TABLE_MAX_POINTS, TABLE_RESOLUTION
-
     for _trial in range(5):
         centers, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor = random_mixture(rng, dim=dim)
         X = centers[:3, None, :] + rng.normal(0, 4.0, (3, 60, dim))
@@ -383,7 +438,7 @@ def test_tabulated_mixture_kernels_match_their_twins(rng, dim):
         consts = (TABLE_RESOLUTION, TABLE_MAX_POINTS, TABLE_MARGIN)
         n_links = nb.size
         lo, inv_h, count = np.zeros(n_links), np.zeros(n_links), np.zeros(n_links, np.int64)
-        K.mixture_grid_kernel(*grid_args, *consts, lo, inv_h, count)
+        DK.mixture_grid_kernel(*grid_args, *consts, lo, inv_h, count)
         ref = mixture_grid_numpy(*grid_args, *consts)
         np.testing.assert_array_equal(count, ref[2])
         np.testing.assert_allclose(lo, ref[0], rtol=1e-12)
@@ -392,7 +447,7 @@ def test_tabulated_mixture_kernels_match_their_twins(rng, dim):
         count[0] = 0  # a link with peaks but no grid: evaluated exactly everywhere
         t_off = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
         table = np.empty((count.sum(), 4))
-        K.mixture_table_kernel(
+        DK.mixture_table_kernel(
             offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, table
         )
         ref_table = mixture_table_numpy(pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count)
@@ -402,7 +457,7 @@ def test_tabulated_mixture_kernels_match_their_twins(rng, dim):
         Y[0, :5] += 300.0  # beyond every grid: evaluated exactly
         out = np.empty((2, 60))
         tail = (2.0, 0.7, centers, lo, inv_h, count)
-        K.mixture_tabulated_kernel(
+        DK.mixture_tabulated_kernel(
             Y, agents, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor, *tail, t_off, table, out
         )
         twin = mixture_tabulated_numpy(
@@ -414,8 +469,6 @@ def test_tabulated_mixture_kernels_match_their_twins(rng, dim):
 def test_tabulated_mixture_is_within_a_millinat_of_the_exact_one(rng):
     """The interpolated log-likelihood (the DPF's frozen likelihood) against the exact
     mixture: at most 1e-3 nats per link anywhere, exact outside the grids."""
-    from phyloc.localization.likelihoods import TABLE_MARGIN, TABLE_MAX_POINTS, TABLE_RESOLUTION
-
     worst = 0.0
     for _trial in range(20):
         centers, offsets, nb, pk_off, pk_d, pk_h, pk_c, s2, floor = random_mixture(rng)
@@ -423,7 +476,7 @@ def test_tabulated_mixture_is_within_a_millinat_of_the_exact_one(rng):
         X = centers[:3, None, :] + rng.normal(0, spread, (3, 400, 2))
         n_links = nb.size
         lo, inv_h, count = np.zeros(n_links), np.zeros(n_links), np.zeros(n_links, np.int64)
-        K.mixture_grid_kernel(
+        DK.mixture_grid_kernel(
             X,
             offsets,
             nb,
@@ -443,12 +496,12 @@ def test_tabulated_mixture_is_within_a_millinat_of_the_exact_one(rng):
         )
         t_off = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(np.int64)
         table = np.empty((count.sum(), 4))
-        K.mixture_table_kernel(
+        DK.mixture_table_kernel(
             offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, table
         )
         agents = np.arange(3)
         out = np.empty((3, 400))
-        K.mixture_tabulated_kernel(
+        DK.mixture_tabulated_kernel(
             X,
             agents,
             offsets,
@@ -480,8 +533,6 @@ def test_tabulated_mixture_is_within_a_millinat_of_the_exact_one(rng):
 def test_frozen_likelihood_equals_the_marginal_one():
     """MarginalDirectLikelihood.frozen: the tabulated function the DPF steps with agrees with
     loglik, a subset of agents gives the same rows, and coincident nodes stay finite."""
-    from phyloc.localization.likelihoods import MarginalDirectLikelihood
-
     rng = np.random.default_rng(17)
     pos = np.vstack([rng.uniform(20, 80, (3, 2)), ANCHORS])
     is_anchor = np.array([False] * 3 + [True] * 4)
@@ -512,8 +563,6 @@ def test_frozen_likelihood_equals_the_marginal_one():
 
 def test_marginal_likelihood_is_the_convolution_of_the_exact_one(rng):
     """log p̃(d) ≈ log ∫ exp(ℓ(d − y)) N(y; 0, s²) dy, ℓ = |f|²/(σ²‖S‖²) (brute force)."""
-    from phyloc.localization.likelihoods import MarginalDirectLikelihood
-
     pos, is_anchor, links = single_agent_setup()
     tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=25.0).select([0])
     lik = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1, outlier_nats=np.inf)
@@ -547,8 +596,6 @@ def test_marginal_evidence_bound_survives_extreme_snr(rng, pc_snr_db):
     an absolute floor ``h − f`` would round the bound ``f`` away. Relative to each link's
     highest peak it holds at any SNR: on the peak the link's log-likelihood is
     ``f + log(1 + e^{−f})`` nats above a particle far from every peak (the floor), to 1e-6."""
-    from phyloc.localization.likelihoods import MarginalDirectLikelihood
-
     pos, is_anchor, links = single_agent_setup()
     tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=pc_snr_db).select([0])
     lik = MarginalDirectLikelihood(tab, links[:1], agent_map(is_anchor), 1, outlier_nats=10.0)
@@ -575,8 +622,6 @@ def test_gauge_priors_show_the_published_collapse():
     tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=35.0)
     X = gauge_priors(6, 2, 500, 100.0, rng)
     prior = Prior(X, lambda x: gauge_log_prior(x, 100.0), "gauge")
-    from phyloc.localization.likelihoods import MarginalDirectLikelihood
-
     pub = run_dpf(
         DirectLikelihood(tab, links, agent_map(is_anchor), 6),
         prior,
@@ -681,8 +726,6 @@ def test_covariance_floor_of_many_agents_matches_the_per_agent_efim(rng):
 
 def test_outlier_floor_bounds_the_evidence_of_one_link(rng):
     """With outlier_nats = Δ a single link moves log-weights by at most γΔ (NLOS robustness)."""
-    from phyloc.localization.likelihoods import MarginalDirectLikelihood
-
     pos, is_anchor, links = single_agent_setup()
     tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=40.0).select([0])
     covs = np.zeros((5, 2, 2))
@@ -714,7 +757,7 @@ def test_next_lambda_kernel_matches_its_twin_and_keeps_the_ess():
     lw[3] = -np.inf  # no finite weight: uniform
     target = 0.5 * Q
     out = np.empty(n)
-    K.next_lambda_kernel(lw, delta, lam, target, 30, out)
+    DK.next_lambda_kernel(lw, delta, lam, target, 30, out)
     ref = next_lambda_numpy(lw, delta, lam, target)
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-7)
     assert out[0] == 1.0 and np.all(out >= lam) and np.all(out <= 1.0)
@@ -843,7 +886,6 @@ def test_model_error_is_smoothing_like_a_known_neighbour_uncertainty(rng):
     """model_error_m = σ adds σ² to the smoothing: the same likelihood as a neighbour whose
     isotropic covariance σ²·I projects σ² on every link (DiPNet eq. (15)), tabulated or not."""
     from phyloc.errors import ValidationError
-    from phyloc.localization.likelihoods import MarginalDirectLikelihood
 
     pos, is_anchor, links = single_agent_setup()
     tab = awgn_network(pos, is_anchor, links, rng, pc_snr_db=30.0)

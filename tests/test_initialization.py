@@ -1,4 +1,5 @@
-"""Truth-free coarse network solution and priors (phyloc.localization.initialization).
+"""Truth-free coarse network solution and priors (phyloc.localization.initialization, .mds,
+.priors and .gauge).
 
 References: exact Euclidean distances (MDS must recover the configuration up to a rigid
 transform), a loop-by-loop Guttman transform written here, the metrics of
@@ -12,20 +13,10 @@ from scipy import stats
 
 from phyloc.errors import ValidationError
 from phyloc.evaluation.metrics import framework_distance_rmse, rigid_align
-from phyloc.localization.initialization import (
-    classical_mds,
-    coarse_positions,
-    gauge_log_prior,
-    gauge_priors,
-    gaussian_log_prior,
-    gaussian_priors,
-    informed_centers,
-    range_matrix,
-    raw_stress,
-    relocate_nodes,
-    shortest_path_completion,
-    smacof,
-)
+from phyloc.localization.gauge import gauge_log_prior, gauge_priors
+from phyloc.localization.initialization import coarse_positions, range_matrix, relocate_nodes
+from phyloc.localization.mds import classical_mds, raw_stress, shortest_path_completion, smacof
+from phyloc.localization.priors import gaussian_log_prior, gaussian_priors, informed_centers
 from phyloc.network import NetworkSpec, make_network
 
 

@@ -22,7 +22,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "phyloc"
 PROBE = r"""
 import hashlib
 import numpy as np
-from phyloc.localization._kernels import peak_laplace_kernel
+from phyloc.localization.direct._kernels import peak_laplace_kernel
 from phyloc.ranging import _kernels as rk
 
 rng = np.random.default_rng(1)

@@ -9,7 +9,7 @@ from scipy import stats
 
 from phyloc.errors import ValidationError
 from phyloc.evaluation.static_scenarios import paper_static_scenario, simulate_ranges
-from phyloc.localization.static import nbp
+from phyloc.localization.static import _nbp_kernels as NK
 from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
     WLSOptions,
@@ -18,16 +18,9 @@ from phyloc.localization.static.gaussian_bp import (
     run_wls,
     wls_cost,
 )
-from phyloc.localization.static.nbp import (
-    Message,
-    NBPOptions,
-    kde_logpdf,
-    lscv_bandwidth,
-    message_product,
-    range_message_samples,
-    run_nbp,
-    silverman_bandwidth,
-)
+from phyloc.localization.static.kde import kde_logpdf, lscv_bandwidth, silverman_bandwidth
+from phyloc.localization.static.messages import Message, message_product, range_message_samples
+from phyloc.localization.static.nbp import NBPOptions, run_nbp
 from phyloc.localization.static.static_ranges import (
     INFEASIBLE_LOG_PENALTY,
     ExponentialRangeError,
@@ -229,17 +222,15 @@ def test_lscv_kernel_matches_numpy_twin_and_picks_a_sensible_bandwidth(rng):
     x = rng.normal(size=(300, 2))
     w = rng.uniform(0.5, 1.5, 300)
     w /= w.sum()
-    out = np.empty(nbp.LSCV_GRID)
-    nbp.lscv_grid_kernel(x, w, 0.8, out)
-    np.testing.assert_allclose(
-        out, lscv_grid_numpy(x, w, 0.8, nbp.LSCV_GRID), rtol=1e-9, atol=1e-12
-    )
+    out = np.empty(NK.LSCV_GRID)
+    NK.lscv_grid_kernel(x, w, 0.8, out)
+    np.testing.assert_allclose(out, lscv_grid_numpy(x, w, 0.8, NK.LSCV_GRID), rtol=1e-9, atol=1e-12)
     # Gaussian data: the normal-reference (Silverman) bandwidth is near-optimal, LSCV agrees
     h_s = silverman_bandwidth(x)
     h_cv = lscv_bandwidth(x, max_samples=300)
     # the twin's score picks the same grid point
     h0 = math.sqrt(2.0) * h_s
-    ref = lscv_grid_numpy(x, np.full(300, 1 / 300), h0, nbp.LSCV_GRID)
+    ref = lscv_grid_numpy(x, np.full(300, 1 / 300), h0, NK.LSCV_GRID)
     assert h_cv == h0 * 0.5 ** (int(np.argmin(ref)) / 2.0)
     assert 0.35 * h_s < h_cv < 1.5 * h_s
     # a thin ring (a range message): LSCV is much narrower than Silverman's rule
@@ -543,7 +534,7 @@ def test_invalid_inputs_name_the_field(rng):
 def test_logsumexp_matches_scipy():
     from scipy.special import logsumexp as ref
 
-    from phyloc.localization.static.nbp import logsumexp
+    from phyloc.localization.static.kde import logsumexp
 
     rng = np.random.default_rng(0)
     a = rng.normal(size=(3, 4, 50)) * 300.0

@@ -1,4 +1,5 @@
-"""Polygon support outer-approximation (phyloc.localization.static.polygons and its kernels).
+"""Polygon support outer-approximation (phyloc.localization.static.polygons, .poa_network,
+.ellipses and their kernels).
 
 References: convex hulls from scipy.spatial, a point-in-convex-polygon test by edge cross
 products written here, brute-force membership on dense grids, closed forms (area of the regular
@@ -18,12 +19,12 @@ from scipy.spatial import ConvexHull
 
 from phyloc.errors import ValidationError
 from phyloc.localization.static import _polygon_kernels as K
+from phyloc.localization.static.ellipses import ellipse_outer_approximation
+from phyloc.localization.static.poa_network import poa
 from phyloc.localization.static.polygons import (
     ConvexPolygon,
     anchor_polygon,
-    ellipse_outer_approximation,
     intersect,
-    poa,
     scale_polygon,
 )
 

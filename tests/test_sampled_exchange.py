@@ -15,16 +15,15 @@ from test_dpf import ANCHORS, agent_map, awgn_network, gaussian_prior
 
 from phyloc.errors import ValidationError
 from phyloc.localization import METHODS
-from phyloc.localization import _kernels as K
+from phyloc.localization.direct import _sampled_kernels as K
 from phyloc.localization.direct import DirectOptions, DPFOptions, LinkMeasurements, LinkRanges
 from phyloc.localization.direct import run as run_direct
-from phyloc.localization.likelihoods import (
+from phyloc.localization.direct.likelihoods import (
     DirectLikelihood,
     GaussianRangeLikelihood,
     MarginalDirectLikelihood,
-    NodeBeliefs,
-    SampledLikelihood,
 )
+from phyloc.localization.direct.sampled_exchange import NodeBeliefs, SampledLikelihood
 
 
 def _beliefs(rng, n_nodes, q_max, dim, counts):

@@ -10,7 +10,7 @@ import pytest
 
 from phyloc.cli import _import_benchmark
 from phyloc.errors import ValidationError
-from phyloc.localization.likelihoods import NodeBeliefs
+from phyloc.localization.direct.sampled_exchange import NodeBeliefs
 
 # the installed package (phyloc.benchmarks) or, when phyloc is the working tree, ./benchmarks
 T = _import_benchmark("phyloc.benchmarks._table1")

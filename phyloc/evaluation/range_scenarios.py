@@ -37,11 +37,7 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
 from phyloc.localization.results import Result
-from phyloc.localization.tracking.range_models import (
-    STATE_MODELS,
-    RangeMeasurements,
-    RangeModel,
-)
+from phyloc.localization.tracking import STATE_MODELS, RangeMeasurements, RangeModel
 
 __all__ = [
     "RangeScenario",

@@ -9,8 +9,11 @@ Families (one folder each; they do not import each other):
 
 Shared parts live here: :mod:`~phyloc.localization.particles` (weights, ESS, resampling,
 regularization, Metropolis–Hastings moves), :mod:`~phyloc.localization.likelihoods` (the
-``Likelihood`` protocol and its direct, marginal and Gaussian implementations),
-:mod:`~phyloc.localization.initialization` (truth-free coarse positions and priors),
+:class:`Likelihood` protocol; its direct, marginal, Gaussian and sample-based implementations
+are the direct family's), :mod:`~phyloc.localization.initialization` (the truth-free coarse
+solution of the network), :mod:`~phyloc.localization.mds` (classical MDS and weighted SMACOF),
+:mod:`~phyloc.localization.priors` (Gaussian priors, the informed start),
+:mod:`~phyloc.localization.gauge` (uninformative gauge priors),
 :mod:`~phyloc.localization.results` (:class:`Result`) and
 :mod:`~phyloc.localization.registry` (:data:`METHODS`, :func:`register_method`).
 
@@ -22,53 +25,47 @@ Examples
 
 References
 ----------
-DiPNet: S. Zhang, E. Staudinger, T. Jost et al., "Distributed Direct Localization Suitable for
-Dense Networks," IEEE Trans. Aerosp. Electron. Syst. 56(2), 2020.
-PF-BP: L. Wielandner, E. Leitinger, F. Meyer, K. Witrisal, "Message Passing-Based 9-D
-Cooperative Localization and Navigation with Embedded Particle Flow."
-POA-NBP: R. Mendrzik, G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-Indoor Localization."
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 # ruff: noqa: I001 (imports grouped by family)
 from phyloc.localization import registry
 from phyloc.localization.registry import FAMILIES, METHODS, Method, Registry, register_method
 from phyloc.localization.results import Result, Timing
+from phyloc.localization.likelihoods import Likelihood
+from phyloc.localization.initialization import CoarseSolution, coarse_positions, range_matrix
+from phyloc.localization.mds import classical_mds, raw_stress, shortest_path_completion, smacof
+from phyloc.localization.priors import (
+    INFORMED_START_STD_M,
+    gaussian_log_prior,
+    gaussian_priors,
+    informed_centers,
+)
+from phyloc.localization.gauge import gauge_log_prior, gauge_priors
 
 # The families register their methods in METHODS when imported.
 # --- direct family -------------------------------------------------------------------------
 from phyloc.localization.direct import (
+    DirectLikelihood,
     DirectOptions,
     DPFOptions,
+    GaussianRangeLikelihood,
     LinkMeasurements,
     LinkRanges,
+    MarginalDirectLikelihood,
+    NodeBeliefs,
     Prior,
+    SampledLikelihood,
     dipnet,
     dipnet_published,
 )
 from phyloc.localization.direct import run as run_direct
-from phyloc.localization.initialization import (
-    INFORMED_START_STD_M,
-    CoarseSolution,
-    classical_mds,
-    coarse_positions,
-    gauge_log_prior,
-    gauge_priors,
-    gaussian_log_prior,
-    gaussian_priors,
-    informed_centers,
-    range_matrix,
-    raw_stress,
-    shortest_path_completion,
-    smacof,
-)
-from phyloc.localization.likelihoods import (
-    DirectLikelihood,
-    GaussianRangeLikelihood,
-    MarginalDirectLikelihood,
-    NodeBeliefs,
-    SampledLikelihood,
-)
 
 # --- tracking family -----------------------------------------------------------------------
 from phyloc.localization.tracking import (
@@ -111,15 +108,27 @@ registry.load_plugins()  # user methods: $PHYLOC_PLUGINS and the "phyloc.methods
 __all__ = [  # noqa: RUF022 (grouped by family)
     # shared
     "FAMILIES",
+    "INFORMED_START_STD_M",
     "METHODS",
+    "CoarseSolution",
+    "Likelihood",
     "Method",
     "Registry",
     "Result",
     "Timing",
+    "classical_mds",
+    "coarse_positions",
+    "gauge_log_prior",
+    "gauge_priors",
+    "gaussian_log_prior",
+    "gaussian_priors",
+    "informed_centers",
+    "range_matrix",
+    "raw_stress",
     "register_method",
+    "shortest_path_completion",
+    "smacof",
     # direct
-    "INFORMED_START_STD_M",
-    "CoarseSolution",
     "DPFOptions",
     "DirectLikelihood",
     "DirectOptions",
@@ -128,22 +137,11 @@ __all__ = [  # noqa: RUF022 (grouped by family)
     "LinkRanges",
     "MarginalDirectLikelihood",
     "NodeBeliefs",
-    "SampledLikelihood",
     "Prior",
-    "classical_mds",
-    "coarse_positions",
+    "SampledLikelihood",
     "dipnet",
     "dipnet_published",
-    "gauge_log_prior",
-    "gauge_priors",
-    "gaussian_log_prior",
-    "gaussian_priors",
-    "informed_centers",
-    "range_matrix",
-    "raw_stress",
     "run_direct",
-    "shortest_path_completion",
-    "smacof",
     # tracking
     "GaussianPrior",
     "PFBPOptions",

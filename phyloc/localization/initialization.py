@@ -1,23 +1,27 @@
-"""Initialization of the particle filters: a truth-free coarse solution and the priors it seeds.
+"""Initialization of the particle filters: the truth-free coarse solution of the network.
 
 DiPNet Algorithm 1 draws each agent's Q particles once from its *a priori* pdf, which the
 paper does not state. Run from uninformative priors the filter collapses (issue 5), so phyloc
 offers three initializations, each labelled as such wherever results are reported:
 
-truth-free (default)
+truth-free (default; this module)
     :func:`coarse_positions` solves the network coarsely from estimated ranges alone — the
-    range matrix (:func:`range_matrix`), classical MDS with shortest-path completion
-    (:func:`classical_mds`) and weighted SMACOF (:func:`smacof`) — and fixes the frame with the
-    anchors when there are any; :func:`gaussian_priors` then draws each agent's particles
-    around its coarse position.
-informed start
-    :func:`informed_centers` perturbs given positions (typically the truth) by ``N(0, σ0²)``,
-    σ0 = 10 m by default, and :func:`gaussian_priors` draws around them. **It uses the truth**:
-    every output computed from it must say "informed start" (scenario tokens ``*_informed``).
-uninformative gauge priors
-    :func:`gauge_priors` / :func:`gauge_log_prior`: the anchor-free gauge of the paper's setting
-    (agent 0 at the origin, agent 1 on the positive x-axis, agent 2 in the upper half-plane,
-    the rest uniform) — kept to show the collapse, not to be used for results.
+    range matrix (:func:`range_matrix`), classical MDS with shortest-path completion and
+    weighted SMACOF (:mod:`phyloc.localization.mds`), Cauchy-reweighted SMACOF against
+    outlying ranges with :func:`relocate_nodes` — and fixes the frame with the anchors when
+    there are any; :func:`~phyloc.localization.priors.gaussian_priors` then draws each agent's
+    particles around its coarse position.
+informed start (:mod:`phyloc.localization.priors`)
+    :func:`~phyloc.localization.priors.informed_centers` perturbs given positions (typically
+    the truth) by ``N(0, σ0²)``, σ0 = 10 m by default, and
+    :func:`~phyloc.localization.priors.gaussian_priors` draws around them. **It uses the
+    truth**: every output computed from it must say "informed start" (scenario tokens
+    ``*_informed``).
+uninformative gauge priors (:mod:`phyloc.localization.gauge`)
+    :func:`~phyloc.localization.gauge.gauge_priors` /
+    :func:`~phyloc.localization.gauge.gauge_log_prior`: the anchor-free gauge of the paper's
+    setting (agent 0 at the origin, agent 1 on the positive x-axis, agent 2 in the upper
+    half-plane, the rest uniform) — kept to show the collapse, not to be used for results.
 
 Shapes follow the package conventions: positions ``[n_nodes, dim]``, particles
 ``[n_agents, Q, dim]``, links ``[n_links, 2]`` with ``(u, v)`` meaning "u receives from v".
@@ -37,15 +41,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse import csgraph
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
-from phyloc.localization import _kernels
+from phyloc.localization.mds import _dim, _pairwise, classical_mds, smacof
 from phyloc.network.geometry import kabsch
-
-INFORMED_START_STD_M = 10.0
-"""Default σ0 [m] of the informed start (:func:`informed_centers`)."""
 
 FRAMES = ("anchors", "partial", "arbitrary")
 """Values of :attr:`CoarseSolution.frame`."""
@@ -56,68 +56,6 @@ def _rng(rng) -> np.random.Generator:
     if not isinstance(rng, np.random.Generator):
         raise ValidationError("rng", type(rng).__name__, "must be a numpy.random.Generator")
     return rng
-
-
-def _dim(dim) -> int:
-    d = v.integer("dim", dim, minimum=1)
-    if d not in (2, 3):
-        raise ValidationError("dim", dim, "must be 2 or 3")
-    return d
-
-
-def _square(name: str, a, n: int | None = None) -> np.ndarray:
-    try:
-        arr = np.array(a, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValidationError(name, "<array>", "must convert to float64") from None
-    if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or (n is not None and arr.shape[0] != n):
-        want = f"({n}, {n})" if n is not None else "square [n, n]"
-        raise ValidationError(name, f"array of shape {arr.shape}", f"must be {want}")
-    return arr
-
-
-def _weights(W, n: int) -> np.ndarray:
-    """Validated symmetric non-negative weights with a zero diagonal (``None``: all pairs)."""
-    if W is None:
-        w = np.ones((n, n))
-    else:
-        w = _square("W", W, n)
-        if not np.all(np.isfinite(w)) or np.any(w < 0):
-            raise ValidationError("W", "negative or non-finite entry", "weights must be >= 0")
-        if not np.array_equal(w, w.T):
-            raise ValidationError("W", "asymmetric matrix", "weights must be symmetric")
-    np.fill_diagonal(w, 0.0)
-    return w
-
-
-def _dissimilarities(D, w: np.ndarray) -> np.ndarray:
-    """``D`` with its used entries (w > 0) checked (finite, >= 0, symmetric), others set to 0."""
-    n = w.shape[0]
-    d = _square("D", D, n)
-    used = w > 0
-    bad = used & ~(np.isfinite(d) & (d >= 0))
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise ValidationError(
-            "D", f"{d[i, j]} at ({i}, {j})", "distances with weight > 0 must be finite and >= 0"
-        )
-    d = np.where(used, d, 0.0)
-    asym = np.abs(d - d.T) > 1e-9 * max(1.0, float(d.max(initial=0.0)))
-    if asym.any():
-        i, j = np.argwhere(asym)[0]
-        raise ValidationError(
-            "D", f"D[{i},{j}] = {d[i, j]} but D[{j},{i}] = {d[j, i]}", "must be symmetric"
-        )
-    return 0.5 * (d + d.T)
-
-
-def _components_message(graph_w: np.ndarray) -> str:
-    n_comp, label = csgraph.connected_components(graph_w > 0, directed=False)
-    isolated = np.flatnonzero(~(graph_w > 0).any(axis=1))
-    parts = [f"{n_comp} connected components (sizes {np.bincount(label).tolist()[:10]})"]
-    if isolated.size:
-        parts.append(f"nodes without any valid range: {isolated[:10].tolist()}")
-    return "; ".join(parts)
 
 
 # -- range matrix -------------------------------------------------------------------------------
@@ -238,202 +176,6 @@ def _pair_ranges(lk, r, sel, n, combine):
     W = (count > 0).astype(np.float64)
     D = np.divide(total, count, out=np.zeros((n, n)), where=count > 0)
     return np.maximum(D, 0.0), W
-
-
-# -- classical MDS ------------------------------------------------------------------------------
-def shortest_path_completion(D, W=None) -> np.ndarray:
-    """Fill the missing entries (weight 0) of ``D`` with shortest-path distances.
-
-    The graph has an edge ``i–j`` of length ``D[i, j]`` wherever ``W[i, j] > 0``; every entry of
-    the result is the shortest-path length (Dijkstra, ``scipy.sparse.csgraph``), so measured
-    entries are kept unless a shorter path exists (inconsistent, noisy triangles).
-
-    Raises
-    ------
-    ValidationError
-        When the graph is disconnected (the message names the components / nodes without a
-        range): the relative placement of the parts is then unobservable.
-    """
-    w = _weights(W, _square("D", D).shape[0])
-    d = _dissimilarities(D, w)
-    graph = csgraph.csgraph_from_dense(np.where(w > 0, d, np.inf), null_value=np.inf)
-    full = csgraph.shortest_path(graph, method="D", directed=False)
-    if not np.all(np.isfinite(full)):
-        raise ValidationError("W", "disconnected range graph", _components_message(w))
-    return full
-
-
-def classical_mds(D, dim, W=None) -> np.ndarray:
-    """Classical (Torgerson) multidimensional scaling of a possibly incomplete range matrix.
-
-    Missing entries (``W[i, j] == 0``) are first replaced by shortest-path distances
-    (:func:`shortest_path_completion`); then, with ``J = I − 11ᵀ/n``,
-
-    .. math:: B = -\\tfrac12 J D^{(2)} J = U Λ Uᵀ, \\qquad X = U_{:dim}\\, Λ_{:dim}^{1/2}
-
-    using the ``dim`` largest eigenvalues (negative ones, from noise, and those below
-    ``1e-12·λ_max``, from rounding, set to 0). Each
-    eigenvector's sign is fixed so that its largest-magnitude entry is positive (deterministic
-    output).
-
-    Parameters
-    ----------
-    D : [n, n] float64
-        Distances [m]; only the entries with ``W > 0`` are read (the rest may be anything).
-    dim : int
-        2 or 3.
-    W : [n, n] float64, optional
-        Symmetric weights, > 0 where ``D`` is measured. Default: every pair measured.
-
-    Returns
-    -------
-    X : [n, dim] float64
-        Centred configuration [m]. With exact complete Euclidean distances it equals the true
-        configuration up to a rigid transform (rotation, reflection, translation). Degenerate
-        inputs give a documented result: 2 nodes lie on the first axis at ``±d/2``; collinear
-        (coplanar in 3-D) nodes have zero coordinates on the unused axes; one node sits at 0.
-
-    Raises
-    ------
-    ValidationError
-        Bad shapes or values; a disconnected range graph (e.g. a node with no valid range).
-
-    Examples
-    --------
-    >>> X = classical_mds([[0.0, 5.0], [5.0, 0.0]], 2)
-    >>> X.round(6).tolist()
-    [[2.5, 0.0], [-2.5, 0.0]]
-    """
-    d = _dim(dim)
-    full = shortest_path_completion(D, W)
-    n = full.shape[0]
-    sq = full**2
-    B = -0.5 * (sq - sq.mean(axis=0)[None, :] - sq.mean(axis=1)[:, None] + sq.mean())
-    lam, U = np.linalg.eigh(0.5 * (B + B.T))
-    order = np.argsort(lam)[::-1][:d]
-    lam, U = lam[order], U[:, order]
-    lam = np.where(lam > 1e-12 * max(float(lam[0]), 0.0), lam, 0.0)  # noise, rounding -> 0
-    flip = np.sign(U[np.argmax(np.abs(U), axis=0), np.arange(U.shape[1])])
-    U = U * np.where(flip == 0, 1.0, flip)
-    X = np.zeros((n, d))
-    X[:, : U.shape[1]] = U * np.sqrt(lam)
-    return X
-
-
-# -- SMACOF -------------------------------------------------------------------------------------
-def raw_stress(X, D, W) -> float:
-    """Weighted raw stress ``σ(X) = Σ_{i<j} w_ij (‖x_i − x_j‖ − δ_ij)²`` [m²]."""
-    w = _weights(W, _square("D", D).shape[0])
-    return _stress(np.asarray(X, dtype=np.float64), _dissimilarities(D, w), w)
-
-
-def _pairwise(X: np.ndarray) -> np.ndarray:
-    diff = X[:, None, :] - X[None, :, :]
-    return np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
-
-
-def _stress(X: np.ndarray, delta: np.ndarray, w: np.ndarray) -> float:
-    return float(0.5 * np.sum(w * (_pairwise(X) - delta) ** 2))
-
-
-def _guttman_b(X: np.ndarray, delta: np.ndarray, w: np.ndarray) -> np.ndarray:
-    dist = _pairwise(X)
-    ratio = np.divide(w * delta, dist, out=np.zeros_like(dist), where=dist > 0)
-    B = -ratio
-    B[np.diag_indices_from(B)] = ratio.sum(axis=1)
-    return B
-
-
-def smacof(D, W, X0, *, n_iter=200, tol=1e-9, fixed=None, return_history=False):
-    """Weighted SMACOF: iterative majorization of the raw stress from a start ``X0``.
-
-    Minimizes ``σ(X) = Σ_{i<j} w_ij (‖x_i − x_j‖ − δ_ij)²`` by the Guttman transform
-
-    .. math:: X^{(k+1)} = V^{+} B(X^{(k)}) X^{(k)},\\qquad
-              V = \\sum_{i<j} w_{ij}(e_i − e_j)(e_i − e_j)ᵀ,
-
-    ``B(X)_ij = −w_ij δ_ij / d_ij(X)`` (0 where ``d_ij(X) = 0``), ``B_ii = −Σ_{j≠i} B_ij`` and
-    ``V⁺`` the Moore–Penrose pseudo-inverse of the weighted ``V`` (de Leeuw's majorization; each
-    step minimizes a majorizer that touches σ at ``X^{(k)}``, so σ never increases).
-
-    With ``fixed`` the fixed rows keep their values (e.g. anchors at known positions) and the
-    free rows solve the same majorizer restricted to them:
-    ``V_ff X_f = (B X)_f − V_fa X_a`` (still monotone).
-
-    Parameters
-    ----------
-    D : [n, n] float64
-        Dissimilarities δ [m]; entries with weight 0 are not read.
-    W : [n, n] float64 or None
-        Symmetric non-negative weights (0: missing pair); ``None``: all pairs weight 1.
-    X0 : [n, dim] float64
-        Start configuration [m].
-    n_iter : int
-        Maximum number of Guttman transforms (>= 0). Default 200.
-    tol : float
-        Stop when an iteration lowers σ by less than ``tol·σ`` (relative, >= 0). Default 1e-9.
-    fixed : [n] bool, optional
-        Rows held at their ``X0`` values.
-    return_history : bool
-        Also return σ after every iteration (starting with σ(X0)).
-
-    Returns
-    -------
-    X : [n, dim] float64
-        [m]. Centred when nothing is fixed and the weight graph is connected.
-    stress : float
-        ``σ(X)`` [m²].
-    history : [n_done + 1] float64
-        Only with ``return_history``; non-increasing (up to rounding).
-
-    Examples
-    --------
-    >>> D = np.array([[0, 3, 4], [3, 0, 5], [4, 5, 0]], dtype=float)
-    >>> X, s = smacof(D, None, [[0, 0], [1, 0], [0, 1]], n_iter=500, tol=0)
-    >>> bool(s < 1e-12)
-    True
-    """
-    n_max = v.integer("n_iter", n_iter, minimum=0)
-    rtol = v.positive("tol", tol, allow_zero=True)
-    d0 = _square("D", D)
-    n = d0.shape[0]
-    w = _weights(W, n)
-    delta = _dissimilarities(d0, w)
-    X = v.finite_array("X0", X0, ndim=2).copy()
-    if X.shape[0] != n or X.shape[1] < 1:
-        raise ValidationError("X0", f"array of shape {X.shape}", f"must be [{n}, dim]")
-    if fixed is None:
-        fix = np.zeros(n, dtype=bool)
-    else:
-        fix = np.asarray(fixed)
-        if fix.dtype != np.bool_ or fix.shape != (n,):
-            raise ValidationError(
-                "fixed", f"{fix.dtype} array of shape {fix.shape}", f"must be bool of shape ({n},)"
-            )
-    free = ~fix
-    V = np.diag(w.sum(axis=1)) - w
-    if fix.any():
-        Vff_pinv = np.linalg.pinv(V[np.ix_(free, free)], hermitian=True)
-        rhs_fixed = V[np.ix_(free, fix)] @ X[fix]
-    else:
-        V_pinv = np.linalg.pinv(V, hermitian=True)
-    s = _stress(X, delta, w)
-    history = [s]
-    for _ in range(n_max if free.any() else 0):
-        BX = _guttman_b(X, delta, w) @ X
-        if fix.any():
-            X_new = X.copy()
-            X_new[free] = Vff_pinv @ (BX[free] - rhs_fixed)
-        else:
-            X_new = V_pinv @ BX
-        s_new = _stress(X_new, delta, w)
-        X, drop, s = X_new, s - s_new, s_new
-        history.append(s)
-        if drop <= rtol * s or s == 0.0:  # also stops on a rounding-level increase
-            break
-    if return_history:
-        return X, s, np.asarray(history)
-    return X, s
 
 
 def _robust_terms(r, c, one_sided):
@@ -601,7 +343,7 @@ class CoarseSolution:
         ``w_ij`` are the final Cauchy weights, so outlying ranges barely count.
     residual_rms_m : float
         ``sqrt(stress / n_pairs)`` [m], the RMS range residual — a truth-free scale for the
-        prior standard deviation of :func:`gaussian_priors`.
+        prior standard deviation of :func:`~phyloc.localization.priors.gaussian_priors`.
     frame : {"anchors", "partial", "arbitrary"}
         ``"anchors"``: the anchors (>= dim + 1, affinely independent) fix the frame, positions
         are absolute. ``"partial"``: fewer or degenerate (collinear/coplanar) anchors fix it only
@@ -646,12 +388,13 @@ def coarse_positions(
 
     1. :func:`range_matrix` of the valid link ranges; with anchors, the anchor–anchor
        distances (known exactly) are added to it.
-    2. :func:`classical_mds` (missing pairs by shortest paths) as the start of weighted
-       :func:`smacof` on the measured pairs only. With ``n_restarts > 0``, as many extra
-       SMACOF runs start from uniform random configurations (drawn with ``rng``) in a box the
-       size of the largest range; the lowest stress wins (with ``robust_scale_m``: every start
-       goes through the robust rounds below and the lowest robust cost wins — folds of a
-       sparse urban network that the MDS start falls into are left this way).
+    2. :func:`~phyloc.localization.mds.classical_mds` (missing pairs by shortest paths) as the
+       start of weighted :func:`~phyloc.localization.mds.smacof` on the measured pairs only.
+       With ``n_restarts > 0``, as many extra SMACOF runs start from uniform random
+       configurations (drawn with ``rng``) in a box the size of the largest range; the lowest
+       stress wins (with ``robust_scale_m``: every start goes through the robust rounds below
+       and the lowest robust cost wins — folds of a sparse urban network that the MDS start
+       falls into are left this way).
     3. With anchors: the solution is rigidly fitted (rotation, translation and reflection —
        Kabsch) onto the known anchor positions, the anchor rows are set exactly, and SMACOF
        refines the agents with the anchors held fixed. With ``>= dim + 1`` affinely independent
@@ -697,7 +440,8 @@ def coarse_positions(
     n_restarts : int
         Extra random SMACOF starts (>= 0). Default 0 (deterministic).
     n_iter, tol
-        SMACOF iteration limit and relative tolerance, see :func:`smacof`.
+        SMACOF iteration limit and relative tolerance, see
+        :func:`~phyloc.localization.mds.smacof`.
     combine : {"mean", "min"}
         How the ranges of one pair are combined, see :func:`range_matrix`.
     robust_scale_m : float or sequence of float, optional
@@ -817,216 +561,3 @@ def coarse_positions(
     n_pairs = int(np.count_nonzero(np.triu(W, 1)))
     rms = float(np.sqrt(s / n_pairs)) if n_pairs else 0.0
     return CoarseSolution(positions=X, stress=float(s), residual_rms_m=rms, frame=frame)
-
-
-# -- priors -------------------------------------------------------------------------------------
-def _std_per_agent(std_m, n_agents: int) -> np.ndarray:
-    s = np.asarray(std_m, dtype=np.float64)
-    if s.ndim == 0:
-        s = np.full(n_agents, float(s))
-    if s.shape != (n_agents,):
-        raise ValidationError("std_m", f"array of shape {s.shape}", f"scalar or ({n_agents},)")
-    if not np.all(np.isfinite(s) & (s > 0)):
-        raise ValidationError("std_m", std_m, "standard deviations must be finite and > 0 [m]")
-    return s
-
-
-def _centers(centers) -> np.ndarray:
-    c = v.finite_array("centers", centers, ndim=2)
-    if c.shape[1] not in (2, 3):
-        raise ValidationError("centers", f"array of shape {c.shape}", "must be [n_agents, 2|3]")
-    return c
-
-
-def gaussian_priors(centers, std_m, Q, rng) -> np.ndarray:
-    """Particles from isotropic Gaussian priors ``p_u ~ N(c_u, σ_u² I)``.
-
-    Parameters
-    ----------
-    centers : [n_agents, dim] float64
-        Prior means [m]: coarse positions (:func:`coarse_positions`, truth-free) or
-        :func:`informed_centers` (informed start).
-    std_m : float or [n_agents] float64
-        Prior standard deviation σ_u per axis [m], > 0.
-    Q : int
-        Particles per agent (>= 1).
-    rng : numpy.random.Generator
-
-    Returns
-    -------
-    particles : [n_agents, Q, dim] float64
-        [m]. Their log prior density is :func:`gaussian_log_prior`.
-
-    Examples
-    --------
-    >>> x = gaussian_priors(np.zeros((2, 2)), 5.0, 1000, np.random.default_rng(0))
-    >>> x.shape
-    (2, 1000, 2)
-    """
-    c = _centers(centers)
-    s = _std_per_agent(std_m, c.shape[0])
-    q = v.integer("Q", Q, minimum=1)
-    noise = _rng(rng).standard_normal((c.shape[0], q, c.shape[1]))
-    return c[:, None, :] + s[:, None, None] * noise
-
-
-def gaussian_log_prior(particles, centers, std_m) -> np.ndarray:
-    """Log density of the priors of :func:`gaussian_priors` at the particles.
-
-    .. math:: \\ln N(x; c_u, σ_u^2 I) = −\\frac{\\|x − c_u\\|^2}{2σ_u^2}
-              − \\frac{\\dim}{2}\\ln(2πσ_u^2)
-
-    Parameters
-    ----------
-    particles : [n_agents, Q, dim] float64
-        [m].
-    centers : [n_agents, dim] float64
-        [m].
-    std_m : float or [n_agents] float64
-        [m], > 0.
-
-    Returns
-    -------
-    log_prior : [n_agents, Q] float64
-        Normalized log density [log 1/m^dim] (finite everywhere).
-    """
-    c = _centers(centers)
-    x = v.finite_array("particles", particles, ndim=3)
-    if x.shape[0] != c.shape[0] or x.shape[2] != c.shape[1]:
-        raise ValidationError(
-            "particles", f"array of shape {x.shape}", f"must be [{c.shape[0]}, Q, {c.shape[1]}]"
-        )
-    s = _std_per_agent(std_m, c.shape[0])
-    out = np.empty(x.shape[:2])
-    _kernels.gaussian_log_prior_kernel(
-        np.ascontiguousarray(x, dtype=np.float64),
-        np.ascontiguousarray(c, dtype=np.float64),
-        np.ascontiguousarray(s, dtype=np.float64),
-        out,
-    )
-    return out
-
-
-def informed_centers(true_positions, std_m=INFORMED_START_STD_M, *, rng) -> np.ndarray:
-    """Prior centres of the **informed start**: ``p + N(0, σ0² I)``.
-
-    This initialization uses the true positions: it is a diagnostic (how good is the filter
-    once near the truth?), not a localization method. Every result computed from it must be
-    labelled "informed start" (scenario tokens ``*_informed``); the truth-free default is
-    :func:`coarse_positions`.
-
-    Parameters
-    ----------
-    true_positions : [..., dim] float64
-        Positions to perturb [m] (usually the agents' true positions).
-    std_m : float
-        σ0 [m], >= 0. Default 10 m (:data:`INFORMED_START_STD_M`).
-    rng : numpy.random.Generator
-        Keyword-only.
-
-    Returns
-    -------
-    centers : like ``true_positions``, float64 [m]
-    """
-    p = v.finite_array("true_positions", true_positions)
-    if p.ndim < 1:
-        raise ValidationError("true_positions", "a scalar", "must be an array [..., dim]")
-    s = v.positive("std_m", std_m, allow_zero=True)
-    return p + s * _rng(rng).standard_normal(p.shape)
-
-
-def gauge_priors(n_agents, dim, Q, extent_m, rng) -> np.ndarray:
-    """Uninformative anchor-free gauge priors (issue 5: kept to show DiPNet's collapse).
-
-    An anchor-free network is determined only up to a rigid transform; these priors remove the
-    gauge freedom by convention, with support (``e = extent_m``):
-
-    - agent 0: the origin (a Dirac: all particles exactly at 0) — fixes translation;
-    - agent 1: the positive x-axis, ``x ~ U(0, e)``, other coordinates 0 — fixes rotation in
-      2-D (and two rotation angles in 3-D);
-    - agent 2: the upper half-plane ``y ~ U(0, e)``, ``x ~ U(−e, e)`` (in 3-D: ``z = 0``, i.e.
-      the half-plane ``{y >= 0, z = 0}``) — fixes the reflection in 2-D (and the last rotation
-      angle in 3-D);
-    - 3-D only, agent 3: ``z ~ U(0, e)`` (upper half-space), ``x, y ~ U(−e, e)`` — fixes the
-      reflection in 3-D;
-    - every other agent: uniform on ``[−e, e]^dim``.
-
-    Choose ``e`` at least the network diameter (e.g. ``√dim ×`` the region side), otherwise the
-    true relative configuration lies outside the support. The density is uniform on the
-    support; :func:`gauge_log_prior` evaluates it.
-
-    Parameters
-    ----------
-    n_agents : int
-        >= 1 (agents 3, … in 2-D and 4, … in 3-D are uniform on the cube).
-    dim : int
-        2 or 3.
-    Q : int
-        Particles per agent (>= 1).
-    extent_m : float
-        e [m], > 0.
-    rng : numpy.random.Generator
-
-    Returns
-    -------
-    particles : [n_agents, Q, dim] float64
-        [m].
-    """
-    n = v.integer("n_agents", n_agents, minimum=1)
-    d = _dim(dim)
-    q = v.integer("Q", Q, minimum=1)
-    e = v.positive("extent_m", extent_m)
-    g = _rng(rng)
-    x = g.uniform(-e, e, size=(n, q, d))
-    x[0] = 0.0
-    if n > 1:
-        x[1] = 0.0
-        x[1, :, 0] = g.uniform(0.0, e, size=q)
-    if n > 2:
-        x[2, :, 1] = g.uniform(0.0, e, size=q)
-        if d == 3:
-            x[2, :, 2] = 0.0
-    if n > 3 and d == 3:
-        x[3, :, 2] = g.uniform(0.0, e, size=q)
-    return x
-
-
-def gauge_log_prior(particles, extent_m, *, atol_m=None) -> np.ndarray:
-    """Unnormalized log density of :func:`gauge_priors`: 0 on the support, ``-inf`` outside.
-
-    Equality constraints (agent 0 at the origin, agent 1's off-axis coordinates, agent 2's z in
-    3-D) hold within ``atol_m`` (default ``1e-9·extent_m``). Callers must treat ``-inf`` with
-    care: a particle outside the support has zero prior weight, and an agent whose particles all
-    lie outside has no valid belief (do not normalize ``-inf − (-inf)``).
-
-    Parameters
-    ----------
-    particles : [n_agents, Q, dim] float64
-        [m], dim 2 or 3.
-    extent_m : float
-        e [m], > 0, as given to :func:`gauge_priors`.
-    atol_m : float, optional
-        Tolerance of the equality constraints [m], >= 0.
-
-    Returns
-    -------
-    log_prior : [n_agents, Q] float64
-        0.0 or ``-inf``.
-    """
-    x = v.finite_array("particles", particles, ndim=3)
-    d = _dim(x.shape[2])
-    e = v.positive("extent_m", extent_m)
-    tol = 1e-9 * e if atol_m is None else v.positive("atol_m", atol_m, allow_zero=True)
-    n = x.shape[0]
-    inside = np.all(np.abs(x) <= e + tol, axis=2)
-    if n > 0:
-        inside[0] &= np.all(np.abs(x[0]) <= tol, axis=1)
-    if n > 1:
-        inside[1] &= (x[1, :, 0] >= -tol) & np.all(np.abs(x[1, :, 1:]) <= tol, axis=1)
-    if n > 2:
-        inside[2] &= x[2, :, 1] >= -tol
-        if d == 3:
-            inside[2] &= np.abs(x[2, :, 2]) <= tol
-    if n > 3 and d == 3:
-        inside[3] &= x[3, :, 2] >= -tol
-    return np.where(inside, 0.0, -np.inf)

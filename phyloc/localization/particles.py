@@ -14,7 +14,9 @@ A. Doucet, N. de Freitas, N. Gordon (eds.), *Sequential Monte Carlo Methods in P
 Springer, 2001 (systematic resampling, resample-move).
 M. S. Arulampalam, S. Maskell, N. Gordon, T. Clapp, "A tutorial on particle filters for online
 nonlinear/non-Gaussian Bayesian tracking," IEEE Trans. SP 50(2), 2002 (effective sample size).
-PF-BP: the particle-flow BP paper, eq. (32) (regularization by Gaussian jitter).
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+(Eq. (32), regularization by Gaussian jitter.)
 """
 
 from __future__ import annotations

@@ -9,12 +9,13 @@ not move). Results never contain the truth; metrics compare them with the truth 
 
 References
 ----------
-DiPNet: S. Zhang, E. Staudinger, T. Jost et al., "Distributed Direct Localization Suitable for
-Dense Networks," IEEE Trans. Aerosp. Electron. Syst. 56(2), 2020.
-PF-BP: L. Wielandner, E. Leitinger, F. Meyer, K. Witrisal, "Message Passing-Based 9-D
-Cooperative Localization and Navigation with Embedded Particle Flow."
-POA-NBP: R. Mendrzik, G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-Indoor Localization."
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 from __future__ import annotations

@@ -23,7 +23,9 @@ error is bounded (Hermite–Genocchi remainder, applied to each exponential of t
 ``W_p = max_{t∈[0,1]} |Π_m (t − x_m)|`` over the nodes (1/4, 9/16, 225/64 for p = 2, 4, 6). For a
 one-path link ``Σ|c_n| = |f(d_peak)|``; at β = 7.97 the relative bound is 1.9e-2 (linear),
 5.7e-4 (cubic) and 1.8e-5 (quintic). :meth:`CorrelationTable.interpolation_error_bound` returns
-the per-link bound; ``phyloc bench phy`` measures errors and costs.
+the per-link bound; ``phyloc bench phy`` measures errors and costs. Numba kernels of other
+layers that read tables themselves (the direct likelihoods of :mod:`phyloc.localization.direct`)
+call the same interpolation through :func:`lagrange_eval`.
 
 References
 ----------
@@ -38,11 +40,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
 from phyloc.phy import _kernels
 from phyloc.phy import fft as _fft
+from phyloc.phy._kernels import _lagrange_eval
 from phyloc.phy.system import C0, OFDMSystem
 from phyloc.phy.waveform import check_symbols
 
@@ -59,6 +63,44 @@ def interpolation_order(method) -> int:
     if method in (2, 4, 6):
         return int(method)
     raise ValidationError("interpolation", method, f"one of {sorted(_ORDERS)} or 2, 4, 6")
+
+
+@njit(cache=True, inline="always")
+def lagrange_eval(values, row, L, x, order):
+    """Lagrange interpolation of one table row at one grid coordinate, for Numba kernels.
+
+    The per-point step of :meth:`CorrelationTable.evaluate`, public so that the ``@njit``
+    kernels of other layers interpolate tables exactly as this module does: ``values[row]``
+    (periodic with period ``L``) at the grid coordinate ``x = d/spacing_m``, from the
+    ``order`` grid values ``−order/2 + 1 … order/2`` around ``floor(x)`` (closed-form weights
+    for orders 2 and 4). Inlined into the caller; not validated (kernel rules).
+
+    Parameters
+    ----------
+    values : [n_links, L] complex128
+        :attr:`CorrelationTable.values`.
+    row : int
+        Link (row of ``values``).
+    L : int
+        ``values.shape[1]``.
+    x : float
+        Distance in grid spacings, ``d/spacing_m`` (any real; wrapped into one period).
+    order : int
+        2, 4 or 6 (:func:`interpolation_order`).
+
+    Returns
+    -------
+    complex
+        The interpolated ``f(d)`` [√W].
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> values = np.array([[0, 1, 2, 3, 2, 1]], dtype=np.complex128)
+    >>> complex(lagrange_eval(values, 0, 6, 1.5, 2))
+    (1.5+0j)
+    """
+    return _lagrange_eval(values, row, L, x, order)
 
 
 def fft_length(system: OFDMSystem, beta: float) -> int:

@@ -30,6 +30,13 @@ A method's ``inputs`` tells an experiment which measurements to build: ``"tables
 correlation tables, ``"ranges:<name>"`` the ranges of estimator ``<name>``, which its options'
 ``ranges`` key then reads.
 
+Modules: :mod:`~phyloc.localization.direct.measurements` (the family's inputs),
+:mod:`~phyloc.localization.direct.likelihoods` (the link likelihoods of the moment exchange),
+:mod:`~phyloc.localization.direct.sampled_exchange` (the sample-based exchange),
+:mod:`~phyloc.localization.direct.dpf` (the filter, one snapshot) and
+:mod:`~phyloc.localization.direct.method` (``run`` and its options); the Numba kernels are in
+the private modules ``_kernels`` and ``_sampled_kernels``.
+
 Examples
 --------
 >>> from phyloc.localization import METHODS
@@ -46,6 +53,11 @@ Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
 from phyloc.localization.direct.dpf import DPFOptions, DPFResult, Prior, predict, run_dpf
+from phyloc.localization.direct.likelihoods import (
+    DirectLikelihood,
+    GaussianRangeLikelihood,
+    MarginalDirectLikelihood,
+)
 from phyloc.localization.direct.measurements import LinkMeasurements, LinkRanges
 from phyloc.localization.direct.method import (
     EXCHANGES,
@@ -54,6 +66,7 @@ from phyloc.localization.direct.method import (
     link_likelihood,
     run,
 )
+from phyloc.localization.direct.sampled_exchange import NodeBeliefs, SampledLikelihood
 from phyloc.localization.registry import register_method
 
 
@@ -142,10 +155,15 @@ __all__ = [
     "NAMES",
     "DPFOptions",
     "DPFResult",
+    "DirectLikelihood",
     "DirectOptions",
+    "GaussianRangeLikelihood",
     "LinkMeasurements",
     "LinkRanges",
+    "MarginalDirectLikelihood",
+    "NodeBeliefs",
     "Prior",
+    "SampledLikelihood",
     "dipnet",
     "dipnet_published",
     "link_likelihood",

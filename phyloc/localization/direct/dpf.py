@@ -1,11 +1,12 @@
 """The equivalent-likelihood distributed particle filter: DiPNet and its two-step twin.
 
-One filter, two kinds of likelihood (:mod:`phyloc.localization.likelihoods`): with a direct
+One filter, two kinds of likelihood (:mod:`phyloc.localization.direct.likelihoods`, seen
+through the :class:`~phyloc.localization.likelihoods.Likelihood` protocol): with a direct
 likelihood from correlation tables it is DiPNet (DiPNet Algorithm 1), with
-:class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood` it is the two-step EL-DPF fed
-by a range estimator. :func:`run_dpf` is one snapshot of the filter; the family's entry point
-``run(measurements, prior, rng, options)`` (:mod:`phyloc.localization.direct.method`) chains
-snapshots. Every agent runs in parallel:
+:class:`~phyloc.localization.direct.likelihoods.GaussianRangeLikelihood` it is the two-step
+EL-DPF fed by a range estimator. :func:`run_dpf` is one snapshot of the filter; the family's
+entry point ``run(measurements, prior, rng, options)`` (:mod:`phyloc.localization.direct.method`)
+chains snapshots. Every agent runs in parallel:
 
 1. draw Q particles from its prior (DiPNet Algorithm 1, line 3);
 2. for k = 1 … K: receive the neighbours' published means and covariances (line 5), compute
@@ -33,8 +34,9 @@ phyloc's default adds three safeguards, each an option::
                        current means.
 
 A likelihood whose ``exchange`` is ``"particles"``
-(:class:`~phyloc.localization.likelihoods.SampledLikelihood`) receives the neighbours' particle
-sets of the previous iteration instead of their moments (sample-based DPE / SAGE, DiPNet §V-B).
+(:class:`~phyloc.localization.direct.sampled_exchange.SampledLikelihood`) receives the
+neighbours' particle sets of the previous iteration instead of their moments (sample-based
+DPE / SAGE, DiPNet §V-B).
 
 Weights stay in the log domain; an agent whose weights are all ``−inf`` or NaN (an empty
 likelihood) falls back to uniform weights and is counted in ``n_degenerate``.
@@ -45,8 +47,8 @@ DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wy
 P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
 Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
-cooperative localization and navigation with embedded particle flow"
-(regularized resampling, PF-BP eq. (32)).
+cooperative localization and navigation with embedded particle flow."
+(Regularized resampling, PF-BP eq. (32).)
 """
 
 from __future__ import annotations
@@ -61,9 +63,10 @@ from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.analysis.efim import direction_vectors, position_crb
 from phyloc.errors import ValidationError
-from phyloc.localization import _kernels as K
 from phyloc.localization import particles as P
-from phyloc.localization.likelihoods import NodeBeliefs
+from phyloc.localization.direct import _kernels as K
+from phyloc.localization.direct.sampled_exchange import NodeBeliefs
+from phyloc.localization.likelihoods import Likelihood
 
 
 @dataclass(frozen=True)
@@ -204,7 +207,7 @@ class DPFResult:
     annealing_steps: int = 0
 
 
-def _floor(cov, likelihood, centers, agent_nodes, floor_m):
+def _floor(cov, likelihood: Likelihood, centers, agent_nodes, floor_m):
     """Add the covariance floor: max(floor², CRB_u/dim) per axis.
 
     ``CRB_u = tr J_u⁻¹`` from the EFIM of DiPNet eq. (17) (``J_u = Σ_v ν_uv e_uv e_uvᵀ``, the
@@ -234,7 +237,7 @@ def _floor(cov, likelihood, centers, agent_nodes, floor_m):
 
 
 def run_dpf(
-    likelihood,
+    likelihood: Likelihood,
     prior: Prior,
     anchor_positions,
     is_anchor,
@@ -247,8 +250,9 @@ def run_dpf(
 
     Parameters
     ----------
-    likelihood : DirectLikelihood, MarginalDirectLikelihood or GaussianRangeLikelihood
-        The link likelihood of this snapshot.
+    likelihood : Likelihood
+        The link likelihood of this snapshot (a ``DirectLikelihood``,
+        ``MarginalDirectLikelihood``, ``GaussianRangeLikelihood`` or ``SampledLikelihood``).
     prior : Prior
         ``particles [n_agents, Q, dim]`` drawn from each agent's prior.
     anchor_positions : [n_anchors, dim] float64
@@ -343,7 +347,7 @@ def run_dpf(
     )
 
 
-def _frozen_loglik(likelihood, centers, covs, gamma, agent_nodes, X, lw):
+def _frozen_loglik(likelihood: Likelihood, centers, covs, gamma, agent_nodes, X, lw):
     """The log-likelihood with the neighbours' beliefs of one iteration frozen: their moments,
     or (a likelihood with ``exchange == "particles"``) their particle sets ``X``, ``lw``.
 
@@ -505,7 +509,8 @@ def _translate(X, lw, lp, ll_old, ll_new, old_fn, new_fn, logp, n_iter, ess_targ
 
 def _next_lambda(lw, delta, lam, ess_target):
     """Per agent, the largest λ' in (λ, 1] whose incremental weights keep ESS >= target
-    (30 bisections on the step, in :func:`~phyloc.localization._kernels.next_lambda_kernel`)."""
+    (30 bisections on the step, in
+    :func:`~phyloc.localization.direct._kernels.next_lambda_kernel`)."""
     out = np.empty(lam.shape)
     K.next_lambda_kernel(
         np.ascontiguousarray(lw, dtype=np.float64),

@@ -6,19 +6,19 @@ any estimator) is :func:`run` with different :class:`DirectOptions`: the option
 
 ``"marginal"``  DiPNet's direct likelihood marginalized over the neighbour's projected
                 uncertainty, bounded by ``outlier_nats``
-                (:class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`; phyloc's
+                (:class:`~phyloc.localization.direct.likelihoods.MarginalDirectLikelihood`; phyloc's
                 departure from DiPNet eq. (25));
 ``"env"``       DiPNet eqs. (25)–(26): the correlation-table likelihood with the equivalent
-                noise variance (:class:`~phyloc.localization.likelihoods.DirectLikelihood`);
+                noise variance (:class:`~phyloc.localization.direct.likelihoods.DirectLikelihood`);
 ``"gaussian"``  the two-step equivalent likelihood on the ranges of the estimator
                 ``ranges`` with the ERV of DiPNet eq. (18)
-                (:class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood`)
+                (:class:`~phyloc.localization.direct.likelihoods.GaussianRangeLikelihood`)
 
 — ``exchange`` chooses what neighbours share: ``"moments"`` (mean and covariance, DiPNet
 Algorithm 1 line 5) or ``"particles"`` (their particle sets: sample-based DPE with
 ``"marginal"`` or ``"env"``, sample-based SAGE with ``"gaussian"``, DiPNet §V-B;
-:class:`~phyloc.localization.likelihoods.SampledLikelihood`) — and ``safeguards`` chooses
-between phyloc's safeguarded filter and DiPNet Algorithm 1 as published. Snapshot 0 runs the
+:class:`~phyloc.localization.direct.sampled_exchange.SampledLikelihood`) — and ``safeguards``
+chooses between phyloc's safeguarded filter and DiPNet Algorithm 1 as published. Snapshot 0 runs the
 filter from the prior (:func:`~.dpf.run_dpf`); each later snapshot predicts the particles
 (:func:`~.dpf.predict`) and runs the filter's iterations again.
 
@@ -51,8 +51,8 @@ DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wy
 P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
 Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
-cooperative localization and navigation with embedded particle flow"
-(regularized resampling, PF-BP eq. (32)).
+cooperative localization and navigation with embedded particle flow."
+(Regularized resampling, PF-BP eq. (32).)
 """
 
 from __future__ import annotations
@@ -67,14 +67,14 @@ from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
 from phyloc.localization.direct.dpf import DPFOptions, Prior, predict, run_dpf
-from phyloc.localization.direct.measurements import LinkMeasurements
-from phyloc.localization.likelihoods import (
-    SAMPLE_KERNELS,
+from phyloc.localization.direct.likelihoods import (
     DirectLikelihood,
     GaussianRangeLikelihood,
     MarginalDirectLikelihood,
-    SampledLikelihood,
 )
+from phyloc.localization.direct.measurements import LinkMeasurements
+from phyloc.localization.direct.sampled_exchange import SAMPLE_KERNELS, SampledLikelihood
+from phyloc.localization.likelihoods import Likelihood
 from phyloc.localization.results import Result, Timing
 
 LIKELIHOODS = ("marginal", "env", "gaussian")
@@ -101,7 +101,7 @@ class DirectOptions:
     sample_kernel : {"silverman", "none"}
         With ``exchange = "particles"``: Gaussian kernels of Silverman's width on the
         neighbour particles, or none (Dirac particles); see
-        :class:`~phyloc.localization.likelihoods.SampledLikelihood`.
+        :class:`~phyloc.localization.direct.sampled_exchange.SampledLikelihood`.
     ranges : str
         Range estimator whose ranges the ``"gaussian"`` likelihood reads
         (``measurements.ranges[ranges]``).
@@ -113,12 +113,12 @@ class DirectOptions:
     model_error_m : float
         Range model error [m] of the ``"marginal"`` and ``"gaussian"`` likelihoods (unresolved
         multipath; default 0), see
-        :class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood` and
-        :class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood`.
+        :class:`~phyloc.localization.direct.likelihoods.MarginalDirectLikelihood` and
+        :class:`~phyloc.localization.direct.likelihoods.GaussianRangeLikelihood`.
     one_sided : bool
         The ``"gaussian"`` likelihood's outlier component covers only ranges longer than the
         distance (NLOS biases are positive), see
-        :class:`~phyloc.localization.likelihoods.GaussianRangeLikelihood`. Default False: in
+        :class:`~phyloc.localization.direct.likelihoods.GaussianRangeLikelihood`. Default False: in
         the C2 networks of the high-SNR study it changed nothing the NLOS identification
         (``los_min_concentration``) had not already fixed, and with particle exchange and
         uncertain neighbours its floor pulls agents towards their neighbours.
@@ -191,7 +191,7 @@ class DirectOptions:
         )
 
 
-def link_likelihood(measurements: LinkMeasurements, t: int, options: DirectOptions):
+def link_likelihood(measurements: LinkMeasurements, t: int, options: DirectOptions) -> Likelihood:
     """The link likelihood of snapshot ``t`` that ``options.likelihood`` names."""
     m = measurements
     links, agent_of, n = m.links[t], m.agent_of_node(), m.n_agents

@@ -29,8 +29,12 @@ name                  label        method
 ====================  ===========  =========================================================
 
 Modules: :mod:`~phyloc.localization.static.static_ranges` (measurement models and the family's
-input types), :mod:`~phyloc.localization.static.polygons` (POA and the ellipse baseline),
-:mod:`~phyloc.localization.static.nbp` (NBP and its proposals),
+input types), :mod:`~phyloc.localization.static.polygons` (convex polygons and the POA
+operations), :mod:`~phyloc.localization.static.poa_network` (POA over a network),
+:mod:`~phyloc.localization.static.ellipses` (the ellipse baseline),
+:mod:`~phyloc.localization.static.kde` (message KDEs and their bandwidths),
+:mod:`~phyloc.localization.static.messages` (range messages and their importance-sampled
+product with the proposals), :mod:`~phyloc.localization.static.nbp` (NBP),
 :mod:`~phyloc.localization.static.gaussian_bp` (Gaussian BP and WLS).
 
 Examples
@@ -49,11 +53,12 @@ Examples
 
 References
 ----------
-R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-Indoor Localization." ("POA-NBP").
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 from phyloc.localization.registry import register_method
+from phyloc.localization.static.ellipses import EllipseRegion, ellipse_outer_approximation
 from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
     WLSOptions,
@@ -63,13 +68,11 @@ from phyloc.localization.static.gaussian_bp import (
     run_wls,
 )
 from phyloc.localization.static.nbp import NBPOptions, run_nbp
+from phyloc.localization.static.poa_network import poa
 from phyloc.localization.static.polygons import (
     ConvexPolygon,
-    EllipseRegion,
     anchor_polygon,
-    ellipse_outer_approximation,
     intersect,
-    poa,
     scale_polygon,
 )
 from phyloc.localization.static.static_ranges import (

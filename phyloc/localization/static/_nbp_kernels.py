@@ -1,4 +1,4 @@
-"""Numba kernels of :mod:`phyloc.localization.static.nbp`.
+"""Numba kernels of the message KDEs (:mod:`phyloc.localization.static.kde`).
 
 The O(N_S²) Gaussian KDE of a message (POA-NBP eq. (7)) evaluated at the proposal samples
 (POA-NBP eq. (8)) and the least-squares cross-validation score of a message's bandwidth. Each
@@ -7,8 +7,8 @@ kernel is tested against a plain-NumPy reference twin, which is test code
 
 References
 ----------
-R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-Indoor Localization." ("POA-NBP").
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 from __future__ import annotations

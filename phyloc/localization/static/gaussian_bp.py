@@ -41,8 +41,9 @@ start at the same point (a zero distance has no gradient).
 
 References
 ----------
-R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-Indoor Localization." ("POA-NBP"; its refs. [19] for PBP and [5] for WLS).
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
+(Its refs. [19] for PBP and [5] for WLS.)
 """
 
 from __future__ import annotations

@@ -36,8 +36,8 @@ truth-free convergence rule (:func:`convergence_iteration`).
 
 References
 ----------
-R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-Indoor Localization." ("POA-NBP").
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 from __future__ import annotations
@@ -464,17 +464,17 @@ class StaticPrior:
         Precomputed support regions of the polygon proposal (POA-NBP eq. (21)): one object per
         agent (or per node, or ``{node: polygon}``) with ``.area``, ``.contains(points)`` and
         ``.sample_uniform(n, rng)``, e.g. the polygons of
-        :func:`~phyloc.localization.static.polygons.poa`. When given, NBP uses them instead of
+        :func:`~phyloc.localization.static.poa_network.poa`. When given, NBP uses them instead of
         computing its own support (``NBPOptions.support``).
     polygon_time_per_node_s : float
         Wall time per agent it took to compute ``polygons`` [s] (reported as the setup time).
     polygon_operations_per_node : float
         Operations per agent it took to compute ``polygons`` (e.g.
-        :attr:`~phyloc.localization.static.polygons.POAResult.operations_per_node`; 0: not
+        :attr:`~phyloc.localization.static.poa_network.POAResult.operations_per_node`; 0: not
         counted), reported with the method's operation count.
     polygon_floats_per_link_iteration : float
         Floats per link and iteration exchanged to compute ``polygons`` (e.g.
-        :attr:`~phyloc.localization.static.polygons.POAResult.floats_per_link_iteration`;
+        :attr:`~phyloc.localization.static.poa_network.POAResult.floats_per_link_iteration`;
         NaN: none or not known).
 
     Examples
