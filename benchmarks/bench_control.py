@@ -35,8 +35,8 @@ smaller trees and reads lower). The approximate search makes ``M₁·T`` vectori
 
 References
 ----------
-W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information approach,"
-arXiv:2212.14554, 2022.
+FIM: W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information
+approach," arXiv:2212.14554, 2022.
 """
 
 from __future__ import annotations

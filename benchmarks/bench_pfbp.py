@@ -31,8 +31,8 @@ scenario (:mod:`phyloc.evaluation.range_scenarios`).
 References
 ----------
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
-cooperative localization and navigation with embedded particle flow," IEEE Trans. Signal and
-Information Processing over Networks 9, 2023 (Tables I, II).
+cooperative localization and navigation with embedded particle flow."
+(Tables I, II.)
 """
 
 from __future__ import annotations

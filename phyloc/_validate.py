@@ -165,6 +165,40 @@ def check_types(cls, table: dict, where: str) -> None:
             raise ValidationError(join(where, f.name), value, f"must be {words}")
 
 
+def from_table(cls, table: dict, where: str, *, exclude=()):
+    """Build the dataclass ``cls`` from a recipe table: the one section parser of phyloc.
+
+    Unknown keys are errors naming the closest valid key (:func:`check_keys`), values of the
+    wrong TOML type are errors naming the expected type (:func:`check_types`), and a field
+    whose metadata has ``{"table": SubClass}`` is parsed the same way from its sub-table
+    (errors name ``where.field.key``). The dataclass's own ``__post_init__`` checks the
+    values. ``exclude`` names fields a recipe may not set.
+
+    Examples
+    --------
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class Opts:
+    ...     n_particles: int = 100
+    >>> from_table(Opts, {"n_particles": 50}, "localization")
+    Opts(n_particles=50)
+    >>> from_table(Opts, {"n_particle": 50}, "localization")
+    Traceback (most recent call last):
+    ...
+    phyloc.errors.ValidationError: localization.n_particle = 50 is not allowed: unknown key; \
+did you mean 'n_particles'? valid keys: n_particles
+    """
+    fields = [f for f in dataclasses.fields(cls) if f.init and f.name not in exclude]
+    check_keys(table, [f.name for f in fields], where)
+    check_types(cls, table, where)
+    kw = dict(table)
+    for f in fields:
+        sub = f.metadata.get("table")
+        if sub is not None and f.name in kw:
+            kw[f.name] = from_table(sub, kw[f.name], join(where, f.name))
+    return cls(**kw)
+
+
 def unreadable_file(path) -> str | None:
     """Why ``path`` cannot be read as a file (``"… does not exist"``, ``"… is a directory"``,
     ``"… is not readable (permission denied)"``), or None when it can."""

@@ -50,7 +50,6 @@ import time
 from datetime import UTC
 
 from phyloc.errors import PhylocError, ValidationError
-from phyloc.evaluation.recipes import EXPERIMENTS, validate_recipe
 
 BENCHMARKS = {
     "phy": "phyloc.benchmarks.bench_phy",
@@ -67,32 +66,303 @@ BENCHMARKS = {
 }
 
 
-def _add_cluster(p):
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="run tasks on a local Dask cluster of N processes (default: in-process)",
-    )
-    p.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS",
-        help="run tasks on an existing Dask scheduler (tcp://host:port)",
-    )
+def _arg(*flags, **kw):
+    """One ``add_argument`` call, as data."""
+    return flags, kw
 
 
-def _add_json(p, *, png: bool | str = False):
-    """``--json PATH`` and ``--force``; ``png`` True (the command writes a ``--png`` figure)
-    or the phrase naming what ``--force`` replaces."""
-    p.add_argument("--json", metavar="PATH", help="also write the figures as JSON to PATH")
-    what = "--json/--png file" if png is True else (png or "--json file")
-    p.add_argument("--force", action="store_true", help=f"replace an existing {what}")
+#: Shared options.
+WORKERS = _arg(
+    "--workers",
+    type=int,
+    default=None,
+    metavar="N",
+    help="run tasks on a local Dask cluster of N processes (default: in-process)",
+)
+SCHEDULER = _arg(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="run tasks on an existing Dask scheduler (tcp://host:port)",
+)
+NO_PROGRESS = _arg("--no-progress", action="store_true", help="no progress bar")
+JSON = _arg("--json", metavar="PATH", help="also write the figures as JSON to PATH")
+SEED = _arg("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def _force(what: str = "--json file"):
+    return _arg("--force", action="store_true", help=f"replace an existing {what}")
+
+
+def _png(default: str):
+    return _arg("--png", metavar="PATH", default=None, help=f"figure (default {default})")
+
+
+def _output(help_: str, metavar: str = "OUT.h5"):
+    return _arg("-o", "--output", required=True, metavar=metavar, help=help_)
+
+
+#: ``(name, help, handler, [arguments])`` of every command; ``analyze`` has sub-commands.
+COMMANDS = [
+    (
+        "bench",
+        "run benchmarks and print their cost per unit of work",
+        "cmd_bench",
+        [
+            _arg(
+                "suite",
+                nargs="?",
+                default="phy",
+                choices=[*BENCHMARKS, "all"],
+                help="which benchmark suite (default: phy)",
+            ),
+            _arg("--quick", action="store_true", help="shorter runs (less precise)"),
+            JSON,
+            _force(),
+        ],
+    ),
+    (
+        "generate",
+        "generate an HDF5 waveform dataset from a recipe",
+        "cmd_generate",
+        [
+            _arg(
+                "recipe", help='dataset recipe (kind = "dataset", e.g. datasets/quickstart_c2.toml)'
+            ),
+            _output("master HDF5 file"),
+            WORKERS,
+            SCHEDULER,
+            _arg(
+                "--resume",
+                action="store_true",
+                help="complete an interrupted run: redo only missing or corrupt shards",
+            ),
+            NO_PROGRESS,
+            _arg("--json", metavar="PATH", help="also write the summary as JSON"),
+            _force(),
+        ],
+    ),
+    (
+        "info",
+        "summarize a dataset (and verify its checksums)",
+        "cmd_info",
+        [
+            _arg("dataset", help="master HDF5 file written by phyloc generate"),
+            _arg("--verify", action="store_true", help="check every shard's checksums"),
+            JSON,
+            _force(),
+        ],
+    ),
+    (
+        "import",
+        "write recorded OFDM snapshots (raw arrays) into a phyloc dataset",
+        "cmd_import",
+        [
+            _arg(
+                "source",
+                help="an .npz file or a plain HDF5 file of the arrays named in datasets/README.md",
+            ),
+            _output("master HDF5 file"),
+            _arg(
+                "--recipe",
+                default=None,
+                metavar="R.toml",
+                help="seed, name, [channel] scenario label, [ranging], [localization] and "
+                "[experiment] for phyloc evaluate (default: the source's recipe text, else "
+                "defaults)",
+            ),
+            _force("output and its shard folder"),
+        ],
+    ),
+    (
+        "export",
+        "write a dataset's waveforms and truth as the raw arrays import reads",
+        "cmd_export",
+        [
+            _arg("dataset", help="master HDF5 file of a dataset"),
+            _output(".npz, .h5 or .hdf5 file", "ARRAYS.npz"),
+            _force("output"),
+        ],
+    ),
+    (
+        "quickstart",
+        "generate a small C2 dataset and compare DiPNet with two-step localization "
+        "on it (about a minute on 2 cores once the kernels are compiled)",
+        "cmd_quickstart",
+        [
+            _arg(
+                "--dir",
+                default="quickstart",
+                metavar="DIR",
+                help="where the dataset and a new results folder go (default ./quickstart)",
+            ),
+            _arg(
+                "--workers",
+                type=int,
+                default=2,
+                metavar="N",
+                help="Dask worker processes for generation and evaluation (default 2)",
+            ),
+            NO_PROGRESS,
+        ],
+    ),
+    (
+        "evaluate",
+        "run an experiment recipe or evaluate a dataset",
+        "cmd_evaluate",
+        [
+            _arg("recipe", help="a recipe TOML file (datasets/*.toml) or a dataset (.h5)"),
+            _arg(
+                "--fast",
+                action="store_true",
+                help="the recipe's [experiment.fast] setting (small, for CI)",
+            ),
+            _arg(
+                "--out",
+                metavar="DIR",
+                default=None,
+                help="results folder (default results/<recipe name>[-fast])",
+            ),
+            WORKERS,
+            SCHEDULER,
+            NO_PROGRESS,
+            _arg(
+                "--resume",
+                action="store_true",
+                help="finish an interrupted run in --out: the tasks it finished (kept in "
+                "OUT/.tasks) are read back, the others run",
+            ),
+            _arg(
+                "--no-verify",
+                action="store_true",
+                help="evaluating a dataset: skip the SHA-256 check of its shard files before "
+                "reading",
+            ),
+            _arg(
+                "--plugin",
+                action="append",
+                default=[],
+                metavar="MODULE",
+                help="import MODULE (a module name or a .py file) that registers localization "
+                "methods with phyloc.localization.register_method; repeatable",
+            ),
+            JSON,
+            _force("--json file or a non-empty --out folder"),
+        ],
+    ),
+    (
+        "channel-stats",
+        "draw links of a channel scenario and compare their statistics with its table",
+        "cmd_channel_stats",
+        [
+            _arg("scenario", help="scenario name (e.g. winner2_c2) or a path to a TOML file"),
+            _arg(
+                "--square",
+                type=float,
+                default=100.0,
+                metavar="SIDE_M",
+                help="side of the square the link end points are drawn in [m] (default 100)",
+            ),
+            _arg(
+                "--links",
+                type=int,
+                default=20000,
+                metavar="N",
+                help="number of links to draw (default 20000)",
+            ),
+            SEED,
+            _png("channel_stats_<scenario>.png: example power-delay profiles"),
+            JSON,
+            _force("--json/--png file"),
+        ],
+    ),
+]
+
+ANALYSES = [
+    (
+        "belief-shift",
+        "belief shift under a distance offset: DiPNet vs two-step (DiPNet Fig. 3)",
+        "cmd_belief_shift",
+        [
+            _arg(
+                "--nu", type=float, default=1.0, help="ν = CRB/σ0², measurement/prior (default 1)"
+            ),
+            _arg("--subcarriers", type=int, default=2569, metavar="N", help="N (default 2569)"),
+            _png("belief_shift_nu<ν>.png"),
+            JSON,
+            _force("--json/--png file"),
+        ],
+    ),
+    (
+        "cci",
+        "conditional concavity indicator of channel scenarios (DiPNet Fig. 2)",
+        "cmd_cci",
+        [
+            _arg(
+                "scenarios",
+                nargs="+",
+                metavar="SCENARIO",
+                help="scenario names (winner2_c2, exponential, ...) or scenario TOML files",
+            ),
+            _arg(
+                "--bandwidth-hz",
+                type=float,
+                default=None,
+                metavar="B",
+                help="bandwidth B = N f_sc [Hz] (default 37.6 MHz, DiPNet §V-A)",
+            ),
+            _arg(
+                "--subcarriers", type=int, default=2569, metavar="N", help="N, odd (default 2569)"
+            ),
+            _arg(
+                "--carrier-hz",
+                type=float,
+                default=5.2e9,
+                metavar="FC",
+                help="carrier frequency of the path-loss laws [Hz] (default 5.2e9)",
+            ),
+            _arg(
+                "--distance-m",
+                type=float,
+                default=10.0,
+                metavar="D",
+                help="distance of the reported minimal bandwidth of DiPNet eq. (44) [m] "
+                "(default 10)",
+            ),
+            _arg(
+                "--links",
+                type=int,
+                default=20000,
+                metavar="N",
+                help="Monte Carlo links per distance, 0 for none (default 20000)",
+            ),
+            _arg(
+                "--mc-points",
+                type=int,
+                default=21,
+                metavar="K",
+                help="Monte Carlo distances (default 21)",
+            ),
+            SEED,
+            NO_PROGRESS,
+            _png("cci_<scenarios>.png"),
+            JSON,
+            _force("--json/--png file"),
+        ],
+    ),
+]
+
+
+def _add_commands(sub, commands) -> None:
+    for name, help_, handler, arguments in commands:
+        p = sub.add_parser(name, help=help_)
+        for flags, kw in arguments:
+            p.add_argument(*flags, **kw)
+        p.set_defaults(func=globals()[handler])
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``phyloc`` command."""
+    """The argument parser of the ``phyloc`` command (built from :data:`COMMANDS`)."""
     from phyloc import __version__
 
     parser = argparse.ArgumentParser(
@@ -107,238 +377,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-
-    b = sub.add_parser("bench", help="run benchmarks and print their cost per unit of work")
-    b.add_argument(
-        "suite",
-        nargs="?",
-        default="phy",
-        choices=[*BENCHMARKS, "all"],
-        help="which benchmark suite (default: phy)",
-    )
-    b.add_argument("--quick", action="store_true", help="shorter runs (less precise)")
-    _add_json(b)
-    b.set_defaults(func=cmd_bench)
-
-    g = sub.add_parser("generate", help="generate an HDF5 waveform dataset from a recipe")
-    g.add_argument(
-        "recipe", help='dataset recipe (kind = "dataset", e.g. datasets/quickstart_c2.toml)'
-    )
-    g.add_argument("-o", "--output", required=True, metavar="OUT.h5", help="master HDF5 file")
-    _add_cluster(g)
-    g.add_argument(
-        "--resume",
-        action="store_true",
-        help="complete an interrupted run: redo only missing or corrupt shards",
-    )
-    g.add_argument("--no-progress", action="store_true", help="no progress bar")
-    g.add_argument("--json", metavar="PATH", help="also write the summary as JSON")
-    g.add_argument("--force", action="store_true", help="replace an existing --json file")
-    g.set_defaults(func=cmd_generate)
-
-    i = sub.add_parser("info", help="summarize a dataset (and verify its checksums)")
-    i.add_argument("dataset", help="master HDF5 file written by phyloc generate")
-    i.add_argument("--verify", action="store_true", help="check every shard's checksums")
-    _add_json(i)
-    i.set_defaults(func=cmd_info)
-
-    im = sub.add_parser(
-        "import", help="write recorded OFDM snapshots (raw arrays) into a phyloc dataset"
-    )
-    im.add_argument(
-        "source",
-        help="an .npz file or a plain HDF5 file of the arrays named in datasets/README.md",
-    )
-    im.add_argument("-o", "--output", required=True, metavar="OUT.h5", help="master HDF5 file")
-    im.add_argument(
-        "--recipe",
-        default=None,
-        metavar="R.toml",
-        help="seed, name, [channel] scenario label, [ranging], [localization] and [experiment] "
-        "for phyloc evaluate (default: the source's recipe text, else defaults)",
-    )
-    im.add_argument(
-        "--force", action="store_true", help="replace an existing output and its shard folder"
-    )
-    im.set_defaults(func=cmd_import)
-
-    ex = sub.add_parser(
-        "export", help="write a dataset's waveforms and truth as the raw arrays import reads"
-    )
-    ex.add_argument("dataset", help="master HDF5 file of a dataset")
-    ex.add_argument(
-        "-o", "--output", required=True, metavar="ARRAYS.npz", help=".npz, .h5 or .hdf5 file"
-    )
-    ex.add_argument("--force", action="store_true", help="replace an existing output")
-    ex.set_defaults(func=cmd_export)
-
-    q = sub.add_parser(
-        "quickstart",
-        help="generate a small C2 dataset and compare DiPNet with "
-        "two-step localization on it (about two minutes on 2 cores)",
-    )
-    q.add_argument(
-        "--dir",
-        default="quickstart",
-        metavar="DIR",
-        help="where the dataset and a new results folder go (default ./quickstart)",
-    )
-    q.add_argument(
-        "--workers",
-        type=int,
-        default=2,
-        metavar="N",
-        help="Dask worker processes for generation and evaluation (default 2)",
-    )
-    q.add_argument("--no-progress", action="store_true", help="no progress bar")
-    q.set_defaults(func=cmd_quickstart)
-
-    e = sub.add_parser("evaluate", help="run an experiment recipe or evaluate a dataset")
-    e.add_argument("recipe", help="a recipe TOML file (datasets/*.toml) or a dataset (.h5)")
-    e.add_argument(
-        "--fast", action="store_true", help="the recipe's [experiment.fast] setting (small, for CI)"
-    )
-    e.add_argument(
-        "--out",
-        metavar="DIR",
-        default=None,
-        help="results folder (default results/<recipe name>[-fast])",
-    )
-    e.add_argument(
-        "--workers",
-        type=int,
-        default=None,
-        metavar="N",
-        help="run tasks on a local Dask cluster of N processes (default: in-process)",
-    )
-    e.add_argument(
-        "--scheduler",
-        default=None,
-        metavar="ADDRESS",
-        help="run tasks on an existing Dask scheduler",
-    )
-    e.add_argument("--no-progress", action="store_true", help="no progress bar")
-    e.add_argument(
-        "--resume",
-        action="store_true",
-        help="finish an interrupted run in --out: the tasks it finished (kept in OUT/.tasks) "
-        "are read back, the others run",
-    )
-    e.add_argument(
-        "--no-verify",
-        action="store_true",
-        help="evaluating a dataset: skip the SHA-256 check of its shard files before reading",
-    )
-    e.add_argument(
-        "--plugin",
-        action="append",
-        default=[],
-        metavar="MODULE",
-        help="import MODULE (a module name or a .py file) that registers localization methods "
-        "with phyloc.localization.register_method; repeatable",
-    )
-    _add_json(e, png="--json file or a non-empty --out folder")
-    e.set_defaults(func=cmd_evaluate)
-
-    c = sub.add_parser(
-        "channel-stats",
-        help="draw links of a channel scenario and compare their statistics with its table",
-    )
-    c.add_argument("scenario", help="scenario name (e.g. winner2_c2) or a path to a TOML file")
-    c.add_argument(
-        "--square",
-        type=float,
-        default=100.0,
-        metavar="SIDE_M",
-        help="side of the square the link end points are drawn in [m] (default 100)",
-    )
-    c.add_argument(
-        "--links",
-        type=int,
-        default=20000,
-        metavar="N",
-        help="number of links to draw (default 20000)",
-    )
-    c.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    c.add_argument(
-        "--png",
-        metavar="PATH",
-        default=None,
-        help="figure of example power-delay profiles (default channel_stats_<scenario>.png)",
-    )
-    _add_json(c, png=True)
-    c.set_defaults(func=cmd_channel_stats)
-
-    a = sub.add_parser("analyze", help="analyses from the theory (DiPNet §IV)")
-    asub = a.add_subparsers(dest="analysis", metavar="ANALYSIS")
+    _add_commands(sub, COMMANDS)
+    analyze = sub.add_parser("analyze", help="analyses from the theory (DiPNet §IV)")
+    asub = analyze.add_subparsers(dest="analysis", metavar="ANALYSIS")
     asub.required = True
-    bs = asub.add_parser(
-        "belief-shift",
-        help="belief shift under a distance offset: DiPNet vs two-step (DiPNet Fig. 3)",
-    )
-    bs.add_argument(
-        "--nu", type=float, default=1.0, help="ν = CRB/σ0², measurement/prior (default 1)"
-    )
-    bs.add_argument("--subcarriers", type=int, default=2569, metavar="N", help="N (default 2569)")
-    bs.add_argument(
-        "--png",
-        metavar="PATH",
-        default=None,
-        help="figure (default belief_shift_nu<ν>.png)",
-    )
-    _add_json(bs, png=True)
-    bs.set_defaults(func=cmd_belief_shift)
-    cc = asub.add_parser(
-        "cci",
-        help="conditional concavity indicator of channel scenarios (DiPNet Fig. 2)",
-    )
-    cc.add_argument(
-        "scenarios",
-        nargs="+",
-        metavar="SCENARIO",
-        help="scenario names (winner2_c2, exponential, ...) or scenario TOML files",
-    )
-    cc.add_argument(
-        "--bandwidth-hz",
-        type=float,
-        default=None,
-        metavar="B",
-        help="bandwidth B = N f_sc [Hz] (default 37.6 MHz, DiPNet §V-A)",
-    )
-    cc.add_argument(
-        "--subcarriers", type=int, default=2569, metavar="N", help="N, odd (default 2569)"
-    )
-    cc.add_argument(
-        "--carrier-hz",
-        type=float,
-        default=5.2e9,
-        metavar="FC",
-        help="carrier frequency of the path-loss laws [Hz] (default 5.2e9)",
-    )
-    cc.add_argument(
-        "--distance-m",
-        type=float,
-        default=10.0,
-        metavar="D",
-        help="distance of the reported minimal bandwidth of DiPNet eq. (44) [m] (default 10)",
-    )
-    cc.add_argument(
-        "--links",
-        type=int,
-        default=20000,
-        metavar="N",
-        help="Monte Carlo links per distance, 0 for none (default 20000)",
-    )
-    cc.add_argument(
-        "--mc-points", type=int, default=21, metavar="K", help="Monte Carlo distances (default 21)"
-    )
-    cc.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    cc.add_argument("--no-progress", action="store_true", help="no progress bar")
-    cc.add_argument(
-        "--png", metavar="PATH", default=None, help="figure (default cci_<scenarios>.png)"
-    )
-    _add_json(cc, png=True)
-    cc.set_defaults(func=cmd_cci)
+    _add_commands(asub, ANALYSES)
     return parser
 
 
@@ -397,13 +440,7 @@ def _os_error(exc: OSError) -> str:
 # -- bench -----------------------------------------------------------------------------------
 def cmd_bench(args) -> int:
     """``phyloc bench``: run the suites, print their tables, optionally write JSON."""
-    from phyloc.reporting import OutputExistsError, machine_meta, write_json
-
-    if args.json and not args.force:
-        from pathlib import Path
-
-        if Path(args.json).exists():  # fail before spending a minute on the benchmark
-            raise OutputExistsError(args.json)
+    _check_outputs(args)  # fail before spending a minute on the benchmark
     suites = list(BENCHMARKS) if args.suite == "all" else [args.suite]
     figures: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -415,16 +452,13 @@ def cmd_bench(args) -> int:
         print(summarize(fig) if summarize else _generic_table(fig))
         print()
         figures.update(fig)
-    if args.json:
-        meta = {
-            "command": "bench",
-            "suite": args.suite,
-            "quick": bool(args.quick),
-            "seconds": time.perf_counter() - t0,
-            "machine": machine_meta(),
-        }
-        path = write_json(args.json, figures, meta, force=args.force)
-        print(f"wrote {path}")
+    meta = {
+        "command": "bench",
+        "suite": args.suite,
+        "quick": bool(args.quick),
+        "seconds": time.perf_counter() - t0,
+    }
+    _write_json(args, figures, meta)
     return 0
 
 
@@ -452,7 +486,12 @@ def cmd_evaluate(args) -> int:
     """``phyloc evaluate``: run a recipe, print its table, write the results folder."""
     from pathlib import Path
 
-    from phyloc.config import load_recipe
+    from phyloc.evaluation.kinds import (
+        DATASET_LOCALIZATION,
+        experiment_for,
+        load_recipe,
+        validate_recipe,
+    )
     from phyloc.parallel import TaskStore, TaskStoreBusy, TaskStoreMismatch, task_store
     from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
 
@@ -462,19 +501,12 @@ def cmd_evaluate(args) -> int:
         add_plugins(args.plugin)
     source = Path(args.recipe)
     if source.suffix in (".h5", ".hdf5") or _is_hdf5(source):
-        exp = importlib.import_module(EXPERIMENTS["localization"])
+        exp = DATASET_LOCALIZATION
         name = source.stem
         recipe = None
     else:
         recipe = load_recipe(args.recipe)
-        if recipe.kind not in EXPERIMENTS:
-            raise ValidationError(
-                "kind",
-                recipe.kind,
-                f"evaluate runs {', '.join(EXPERIMENTS)} "
-                "recipes; generate a dataset recipe with phyloc generate",
-            )
-        exp = importlib.import_module(EXPERIMENTS[recipe.kind])
+        exp = experiment_for(recipe.kind)
         validate_recipe(recipe)  # the full and the fast setting, before any work
         name = recipe.name
     out = Path(args.out or Path("results") / (name + ("-fast" if args.fast else "")))
@@ -564,9 +596,8 @@ def cmd_evaluate(args) -> int:
     png = out / f"{name}.png"
     exp.plot(res, png)
     print(f"{name}{' (fast)' if args.fast else ''}: {res['meta']['seconds']:.1f} s")
-    headers = exp.summary_headers(res) if hasattr(exp, "summary_headers") else exp.SUMMARY_HEADERS
-    print(format_table(exp.summary_rows(res), headers))
-    for line in getattr(exp, "summary_lines", lambda r: [])(res):
+    print(format_table(exp.summary_rows(res), exp.summary_headers(res)))
+    for line in exp.summary_lines(res):
         print(line)
     extra = sorted(p for p in out.glob(f"{name}_*.png"))  # further figures of the experiment
     print(f"wrote {', '.join(str(p) for p in [out / 'results.json', png, *extra])}")
@@ -596,14 +627,12 @@ def _dataset_recipe_text(path) -> str:
 # -- generate / info / quickstart --------------------------------------------------------------
 def cmd_generate(args) -> int:
     """``phyloc generate``: write a sharded HDF5 dataset (see :func:`phyloc.datasets.generate`)."""
-    from pathlib import Path
 
-    from phyloc.config import load_recipe
     from phyloc.datasets import generate
-    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+    from phyloc.evaluation.kinds import load_recipe, validate_recipe
+    from phyloc.reporting import format_table
 
-    if args.json and Path(args.json).exists() and not args.force:
-        raise OutputExistsError(args.json)
+    _check_outputs(args)
     recipe = load_recipe(args.recipe)
     if recipe.kind != "dataset":
         raise ValidationError(
@@ -625,27 +654,18 @@ def cmd_generate(args) -> int:
     if not summary.get("bytes_written"):  # a resume that reused every shard: no bandwidth
         rows = [(k, v) for k, v in rows if k != "write_mb_per_s"]
     print(format_table(rows, ["generated " + str(summary.get("path", args.output)), ""]))
-    if args.json:
-        meta = {
-            "command": "generate",
-            "recipe": recipe.name,
-            "seed": recipe.seed,
-            "machine": machine_meta(),
-        }
-        write_json(args.json, {k: v for k, v in rows}, meta, force=args.force)
-        print(f"wrote {args.json}")
+    meta = {"command": "generate", "recipe": recipe.name, "seed": recipe.seed}
+    _write_json(args, dict(rows), meta)
     return 0
 
 
 def cmd_info(args) -> int:
     """``phyloc info``: summary of a dataset; exit status 1 when ``--verify`` finds damage."""
-    from pathlib import Path
 
     from phyloc.datasets import info
-    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+    from phyloc.reporting import format_table
 
-    if args.json and Path(args.json).exists() and not args.force:
-        raise OutputExistsError(args.json)
+    _check_outputs(args)
     res = info(args.dataset, verify=args.verify)
     flat = {}
     for k, v in res.items():
@@ -658,22 +678,10 @@ def cmd_info(args) -> int:
         (k, v if isinstance(v, (int, float, str)) or v is None else str(v)) for k, v in flat.items()
     ]
     print(format_table(rows, [str(args.dataset), ""]))
-    if args.json:
-        figs = {
-            k: v for k, v in flat.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
-        }
-        write_json(
-            args.json,
-            figs,
-            {
-                "command": "info",
-                "dataset": str(args.dataset),
-                "info": flat,
-                "machine": machine_meta(),
-            },
-            force=args.force,
-        )
-        print(f"wrote {args.json}")
+    figs = {
+        k: v for k, v in flat.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
+    }
+    _write_json(args, figs, {"command": "info", "dataset": str(args.dataset), "info": flat})
     if args.verify and not res.get("ok", True):
         print(
             "phyloc: verify found a damaged master or missing or corrupt shards; repair with "
@@ -713,7 +721,7 @@ def cmd_quickstart(args) -> int:
     from importlib.resources import files
     from pathlib import Path
 
-    from phyloc.config import load_recipe
+    from phyloc.evaluation.kinds import load_recipe
 
     root = Path(args.dir)
     root.mkdir(parents=True, exist_ok=True)
@@ -756,12 +764,10 @@ def cmd_channel_stats(args) -> int:
     import numpy as np
 
     from phyloc.channels.stats import channel_stats, plot_power_delay_profiles
-    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+    from phyloc.reporting import format_table
 
     png = Path(args.png or f"channel_stats_{Path(args.scenario).stem}.png")
-    for p in (args.json, png):
-        if p and Path(p).exists() and not args.force:
-            raise OutputExistsError(p)
+    _check_outputs(args, png)
     rng = np.random.default_rng(args.seed)
     res = channel_stats(args.scenario, square_m=args.square, n_links=args.links, rng=rng)
     print(
@@ -771,107 +777,123 @@ def cmd_channel_stats(args) -> int:
     print(format_table(res["table"], ["quantity", "realized", "table"]))
     plot_power_delay_profiles(res["draw"], png)
     print(f"wrote {png}")
+    meta = {
+        "command": "channel-stats",
+        "scenario": args.scenario,
+        "seed": args.seed,
+        "links": args.links,
+        "square_m": args.square,
+    }
+    _write_json(args, res["figures"], meta, res.get("series"))
+    return 0
+
+
+def _check_outputs(args, *paths) -> None:
+    """Refuse, before any work, to overwrite ``--json`` or any of ``paths`` without
+    ``--force``."""
+    from pathlib import Path
+
+    from phyloc.reporting import OutputExistsError
+
+    for p in (getattr(args, "json", None), *paths):
+        if p and Path(p).exists() and not args.force:
+            raise OutputExistsError(p)
+
+
+def _write_json(args, figures: dict, meta: dict, series=None) -> None:
+    """``--json PATH`` (when given): the figures, ``meta`` with the machine, and ``series``."""
+    from phyloc.reporting import machine_meta, write_json
+
     if args.json:
-        meta = {
-            "command": "channel-stats",
-            "scenario": args.scenario,
-            "seed": args.seed,
-            "links": args.links,
-            "square_m": args.square,
-            "machine": machine_meta(),
-        }
-        path = write_json(args.json, res["figures"], meta, res.get("series"), force=args.force)
+        meta = {**meta, "machine": machine_meta()}
+        path = write_json(args.json, figures, meta, series, force=args.force)
         print(f"wrote {path}")
+
+
+def _run_preset(args, doc: dict, flags: dict, png) -> int:
+    """Run the recipe ``doc`` built from command-line flags (an ``analyze`` preset) through
+    its experiment, exactly as ``phyloc evaluate`` would; errors name the flag a recipe key
+    came from (``flags``: recipe key prefix -> flag)."""
+    from phyloc.config import dumps_toml
+    from phyloc.evaluation.kinds import experiment_for, load_recipe
+    from phyloc.reporting import format_table
+
+    _check_outputs(args, png)
+    try:
+        recipe = load_recipe("\n" + dumps_toml(doc))
+        exp = experiment_for(recipe.kind)
+        exp.prepare(recipe)
+    except ValidationError as exc:
+        key = next((k for k in flags if exc.field.startswith(k)), None)
+        if key is None:
+            raise
+        value = getattr(args, flags[key]["arg"], exc.value) if "arg" in flags[key] else exc.value
+        field = flags[key]["flag"] + exc.field[len(key) :]
+        raise ValidationError(field, value, exc.allowed) from None
+    res = exp.run(recipe, progress=not getattr(args, "no_progress", False))
+    print(format_table(exp.summary_rows(res), exp.summary_headers(res)))
+    for line in exp.summary_lines(res):
+        print(line)
+    exp.plot(res, png)
+    print(f"wrote {png}")
+    _write_json(
+        args, res["figures"], {**res["meta"], "command": f"analyze {args.analysis}"}, res["series"]
+    )
     return 0
 
 
 def cmd_belief_shift(args) -> int:
-    """``phyloc analyze belief-shift``: DiPNet Fig. 3 and its summary numbers."""
-    from pathlib import Path
-
-    from phyloc.analysis.belief_shift import figure3, plot_figure3
-    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
-
-    png = Path(args.png or f"belief_shift_nu{args.nu:g}.png")
-    for p in (args.json, png):
-        if p and Path(p).exists() and not args.force:
-            raise OutputExistsError(p)
-    res = figure3(args.nu, args.subcarriers)
-    figures = {f"belief_shift.{k}": v for k, v in res["figures"].items()}
+    """``phyloc analyze belief-shift``: DiPNet Fig. 3 and its summary numbers (the
+    ``belief_shift`` experiment, a recipe built from the flags)."""
+    doc = {
+        "kind": "belief_shift",
+        "name": "analyze_belief_shift",
+        "seed": 0,
+        "system": {"n_subcarriers": args.subcarriers},
+        "experiment": {"nu": args.nu},
+    }
+    flags = {
+        "experiment.nu": {"flag": "--nu"},
+        "system.n_subcarriers": {"flag": "--subcarriers"},
+    }
+    png = args.png or f"belief_shift_nu{args.nu:g}.png"
     print(f"belief shift (DiPNet §IV-B), ν = {args.nu:g}, N = {args.subcarriers}; [c0/B]")
-    print(format_table(list(figures.items()), ["figure", "value"]))
-    plot_figure3(res, png, args.nu)
-    print(f"wrote {png}")
-    if args.json:
-        meta = {
-            "command": "analyze belief-shift",
-            "nu": args.nu,
-            "subcarriers": args.subcarriers,
-            "machine": machine_meta(),
-        }
-        series = {f"belief_shift.{k}": v for k, v in res["series"].items()}
-        path = write_json(args.json, figures, meta, series, force=args.force)
-        print(f"wrote {path}")
-    return 0
+    return _run_preset(args, doc, flags, png)
 
 
 def cmd_cci(args) -> int:
-    """``phyloc analyze cci``: DiPNet Fig. 2 for any scenarios, and its summary numbers."""
+    """``phyloc analyze cci``: DiPNet Fig. 2 for any scenarios, and its summary numbers (the
+    ``cci`` experiment, a recipe built from the flags)."""
     from pathlib import Path
 
-    from phyloc.evaluation import cci_experiment as cci
-    from phyloc.phy.system import OFDMSystem
-    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
-
-    label = "_".join(Path(s).stem for s in args.scenarios)
-    png = Path(args.png or f"cci_{label}.png")
-    for p in (args.json, png):
-        if p and Path(p).exists() and not args.force:
-            raise OutputExistsError(p)
-    flags = {
-        "system.n_subcarriers": "--subcarriers",
-        "system.subcarrier_spacing_hz": "--bandwidth-hz",
-        "experiment.links": "--links",
-        "experiment.mc_points": "--mc-points",
-        "experiment.distance_m": "--distance-m",
+    n = args.subcarriers
+    bw = 14.65e3 * n if args.bandwidth_hz is None else args.bandwidth_hz
+    doc = {
+        "kind": "cci",
+        "name": "analyze_cci",
+        "seed": args.seed,
+        "system": {
+            "n_subcarriers": n,
+            "subcarrier_spacing_hz": bw / n if n else bw,
+            "carrier_frequency_hz": args.carrier_hz,
+        },
+        "experiment": {
+            "scenarios": list(args.scenarios),
+            "links": args.links,
+            "mc_points": args.mc_points,
+            "distance_m": args.distance_m,
+        },
     }
-    try:
-        n = args.subcarriers
-        bw = 14.65e3 * n if args.bandwidth_hz is None else args.bandwidth_hz
-        system = OFDMSystem(
-            n_subcarriers=n,
-            subcarrier_spacing_hz=bw / n if n else bw,
-            carrier_frequency_hz=args.carrier_hz,
-        )
-        exp = cci.CCIExperimentSpec(
-            scenarios=tuple(args.scenarios),
-            links=args.links,
-            mc_points=args.mc_points,
-            distance_m=args.distance_m,
-        )
-    except ValidationError as exc:
-        if exc.field not in flags:
-            raise
-        value = args.bandwidth_hz if exc.field == "system.subcarrier_spacing_hz" else exc.value
-        raise ValidationError(flags[exc.field], value, exc.allowed) from None
-    res = cci.study(
-        exp.scenarios,
-        system,
-        exp,
-        seed=args.seed,
-        progress=not args.no_progress,
-        where="SCENARIO",
-    )
-    print(format_table(cci.summary_rows(res), cci.SUMMARY_HEADERS))
-    for line in cci.summary_lines(res):
-        print(line)
-    cci.plot(res, png)
-    print(f"wrote {png}")
-    if args.json:
-        res["meta"].update({"command": "analyze cci", "machine": machine_meta()})
-        path = write_json(args.json, res["figures"], res["meta"], res["series"], force=args.force)
-        print(f"wrote {path}")
-    return 0
+    flags = {
+        "system.n_subcarriers": {"flag": "--subcarriers"},
+        "system.subcarrier_spacing_hz": {"flag": "--bandwidth-hz", "arg": "bandwidth_hz"},
+        "experiment.links": {"flag": "--links"},
+        "experiment.mc_points": {"flag": "--mc-points"},
+        "experiment.distance_m": {"flag": "--distance-m"},
+        "experiment.scenarios": {"flag": "SCENARIO"},
+    }
+    label = "_".join(Path(s).stem for s in args.scenarios)
+    return _run_preset(args, doc, flags, args.png or f"cci_{label}.png")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,13 +9,9 @@ validated by their consumers' ``from_dict`` through :meth:`Recipe.section`.
 
 Top-level keys:
 
-* ``kind``: what the recipe runs: ``"ranging"`` (ranging RMSE versus bounds, DiPNet Fig. 4),
-  ``"localization"`` (direct versus two-step localization, DiPNet Fig. 5), ``"dataset"``
-  (waveforms for ``phyloc generate``), ``"tracking"`` (range-level cooperative tracking,
-  PF-BP Figs. 4, 6, 7), ``"static"`` (static cooperative localization with polygon-constrained
-  NBP, POA-NBP Figs. 9–12), ``"direct_tracking"`` (direct localization over the snapshots of
-  moving networks, DiPNet Figs. 6–7) or ``"control"`` (mobile anchors steered by Fisher
-  information, :mod:`phyloc.control`);
+* ``kind``: what the recipe runs: ``"dataset"`` (waveforms for ``phyloc generate``) or an
+  experiment kind of :data:`phyloc.evaluation.kinds.EXPERIMENTS` (``phyloc evaluate``; the
+  user guide lists them with the paper figures they reproduce);
 * ``name``: a short identifier (results folder name, figure prefixes);
 * ``seed``: the one seed of all randomness (per-task streams come from
   ``SeedSequence.spawn``);
@@ -37,17 +33,6 @@ from phyloc._validate import check_keys
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.phy.system import OFDMSystem
 
-KINDS = (
-    "ranging",
-    "localization",
-    "dataset",
-    "tracking",
-    "static",
-    "direct_tracking",
-    "control",
-    "cci",
-    "belief_shift",
-)
 TOP_LEVEL = ("kind", "name", "seed", "description")
 SECTIONS = ("system", "network", "channel", "ranging", "experiment", "localization", "dataset")
 
@@ -126,9 +111,13 @@ def dumps_toml(doc: dict) -> str:
     return tomli_w.dumps(clean(doc))
 
 
-def load_recipe(source) -> Recipe:
+def load_recipe(source, *, kinds=None) -> Recipe:
     """Read and validate a recipe from a path (or from TOML text starting with a newline or
-    containing ``=``)."""
+    containing ``=``).
+
+    ``kinds``: the allowed values of ``kind`` (:data:`phyloc.evaluation.kinds.KINDS`, which
+    :func:`phyloc.evaluation.kinds.load_recipe` passes); None accepts any kind name, which the
+    command that runs the recipe then checks."""
     path = None
     if isinstance(source, Path) or (isinstance(source, str) and "=" not in source):
         path = Path(source)
@@ -150,15 +139,17 @@ def load_recipe(source) -> Recipe:
     except tomllib.TOMLDecodeError as exc:
         where = f"{path}: " if path else ""
         raise RecipeError(f"{where}invalid TOML: {exc}") from None
-    return parse_recipe(doc, text=text, path=path)
+    return parse_recipe(doc, text=text, path=path, kinds=kinds)
 
 
-def parse_recipe(doc: dict, *, text: str = "", path: Path | None = None) -> Recipe:
-    """Validate a parsed recipe document."""
+def parse_recipe(doc: dict, *, text: str = "", path: Path | None = None, kinds=None) -> Recipe:
+    """Validate a parsed recipe document (``kind`` one of ``kinds`` when given)."""
     check_keys(doc, [*TOP_LEVEL, *SECTIONS], "recipe")
     kind = doc.get("kind")
-    if kind not in KINDS:
-        raise ValidationError("kind", kind, f"one of {', '.join(KINDS)}")
+    if kinds is not None and kind not in kinds:
+        raise ValidationError("kind", kind, f"one of {', '.join(kinds)}")
+    if not isinstance(kind, str) or not kind.isidentifier():
+        raise ValidationError("kind", kind, "a recipe kind: ranging, localization, dataset, …")
     name = doc.get("name", path.stem if path else "recipe")
     if not isinstance(name, str) or not name or any(c in name for c in "/\\ "):
         raise ValidationError("name", name, "a non-empty string without spaces or slashes")

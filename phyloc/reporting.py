@@ -1,6 +1,6 @@
 """Machine-readable results (``--json PATH``) and plain-text tables for the command line.
 
-Every command that reports numbers writes a JSON object (DESIGN.md, "Figures out")::
+Every command that reports numbers writes a JSON object (see :doc:`/guide/design`)::
 
     {"figures": {"name": number, ...},   # flat, documented, stable names
      "meta": {"phyloc_version": ..., "command": ..., "seed": ..., "machine": {...}},
@@ -139,3 +139,38 @@ def format_table(rows, headers) -> str:
             )
         )
     return "\n".join(out)
+
+
+#: One resolution for every figure phyloc writes [dots per inch].
+FIGURE_DPI = 110
+
+
+def new_figure(rows: int = 1, cols: int = 1, *, size=(6.4, 4.8), **subplots):
+    """A matplotlib ``Figure`` (constrained layout) on its own Agg canvas and its axes
+    (``Figure.subplots`` arguments; ``rows = 0``: no axes, the caller adds its own). No global
+    backend is chosen, so a user's own plotting is untouched."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, layout="constrained")
+    FigureCanvasAgg(fig)
+    if rows == 0 or cols == 0:  # no grid: the caller adds its own axes
+        return fig, None
+    return fig, fig.subplots(rows, cols, **subplots)
+
+
+def save_figure(fig, path) -> None:
+    """Write ``fig`` to ``path`` (PNG by its suffix) at :data:`FIGURE_DPI`."""
+    fig.savefig(path, dpi=FIGURE_DPI)
+
+
+def grouped_bars(ax, labels, groups: dict, *, fontsize: int = 8) -> None:
+    """Bars of ``groups`` (``{legend label: one value per x label}``) side by side per label."""
+    import numpy as np
+
+    x = np.arange(len(labels))
+    width = 0.8 / len(groups)
+    for j, (name, values) in enumerate(groups.items()):
+        ax.bar(x + j * width, values, width, label=name)
+    ax.set_xticks(x + 0.4 - width / 2, labels, rotation=20, fontsize=fontsize)
+    ax.legend(fontsize=fontsize)

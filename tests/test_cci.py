@@ -319,8 +319,8 @@ def test_recipe_runs_and_is_the_same_on_two_workers(tmp_path):
     from phyloc.config import load_recipe
 
     recipe = load_recipe(Path(__file__).parents[1] / "datasets" / "dipnet_fig2_cci.toml")
-    one = cci_experiment.run(recipe, fast=True, progress=False)
-    two = cci_experiment.run(recipe, fast=True, workers=2, progress=False)
+    one = cci_experiment.CCI.run(recipe, fast=True, progress=False)
+    two = cci_experiment.CCI.run(recipe, fast=True, workers=2, progress=False)
     assert (
         one["series"]["cci.winner2_c2.mc"].tolist() == two["series"]["cci.winner2_c2.mc"].tolist()
     )

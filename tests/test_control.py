@@ -300,8 +300,8 @@ def _non_timing(fig):
 
 def test_control_experiment_same_numbers_on_one_and_two_workers(tmp_path):
     recipe = _tiny_recipe(tmp_path)
-    one = ce.run(recipe, progress=False)
-    two = ce.run(recipe, workers=2, progress=False)
+    one = ce.CONTROL.run(recipe, progress=False)
+    two = ce.CONTROL.run(recipe, workers=2, progress=False)
     assert _non_timing(one["figures"]) == _non_timing(two["figures"])
     f = one["figures"]
     for p in one["meta"]["policies"]:
@@ -313,13 +313,13 @@ def test_control_experiment_same_numbers_on_one_and_two_workers(tmp_path):
 
 
 def test_grouping_of_trials_into_tasks_does_not_change_the_numbers(tmp_path):
-    a = ce.run(_tiny_recipe(tmp_path), progress=False)
+    a = ce.CONTROL.run(_tiny_recipe(tmp_path), progress=False)
     (tmp_path / "b").mkdir()
     text = (
         (tmp_path / "tiny_control.toml").read_text().replace("task_trials = 4", "task_trials = 1")
     )
     (tmp_path / "b" / "tiny_control.toml").write_text(text)
-    b = ce.run(load_recipe(tmp_path / "b" / "tiny_control.toml"), progress=False)
+    b = ce.CONTROL.run(load_recipe(tmp_path / "b" / "tiny_control.toml"), progress=False)
     assert _non_timing(a["figures"]) == _non_timing(b["figures"])
 
 
@@ -357,4 +357,4 @@ def test_recipe_errors_name_the_key_before_any_work(tmp_path, section, key, valu
     path = tmp_path / "bad.toml"
     path.write_text("\n".join(out) + "\n")
     with pytest.raises(ValidationError, match=match):
-        ce.run(load_recipe(path), progress=False)
+        ce.CONTROL.run(load_recipe(path), progress=False)

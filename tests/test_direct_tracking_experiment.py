@@ -9,6 +9,7 @@ import pytest
 
 from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
+from phyloc.evaluation.experiment import experiment_from_dict
 from phyloc.evaluation import direct_tracking_experiment as dt
 from phyloc.network import make_network, pentagon
 
@@ -79,7 +80,7 @@ METHODS = ("dipnet", "dpe_sampled", "corr2")
 
 @pytest.fixture(scope="module")
 def tiny():
-    return dt.run(load_recipe(TINY), progress=False)
+    return dt.DIRECT_TRACKING.run(load_recipe(TINY), progress=False)
 
 
 def test_every_documented_figure_and_series(tiny):
@@ -152,7 +153,7 @@ def test_tracks_are_rigidly_aligned_estimates(tiny):
 
 
 def test_same_seed_same_numbers_on_two_workers(tiny):
-    two = dt.run(load_recipe(TINY), workers=2, progress=False)
+    two = dt.DIRECT_TRACKING.run(load_recipe(TINY), workers=2, progress=False)
     for k, v in tiny["figures"].items():
         if not k.endswith("_s"):
             assert two["figures"][k] == v or (math.isnan(v) and math.isnan(two["figures"][k])), k
@@ -162,7 +163,7 @@ def test_replica_recipe_geometry():
     """The replica: pentagons of 15 m and 30 m, 260 and 330 snapshots, the fast zig-zag of
     experiment 2 from snapshot ≈ 250 to the end."""
     recipe = load_recipe(DATASETS / "dipnet_fig7_rover.toml")
-    exp = dt.DirectTrackingExperimentSpec.from_dict(recipe.section("experiment"))
+    exp = experiment_from_dict(dt.DirectTrackingExperimentSpec, recipe.section("experiment"))
     nets = exp.networks(dict(recipe.section("network")))
     for name, diameter, T in (("exp1", 15.0, 260), ("exp2", 30.0, 330)):
         net = make_network(nets[name], np.random.default_rng(0))
@@ -196,8 +197,8 @@ def test_replica_recipe_geometry():
     ],
 )
 def test_bad_recipe_keys_fail_before_any_work(monkeypatch, edit, key):
-    import phyloc.evaluation.direct_tracking_experiment as mod
+    import phyloc.evaluation.experiment as runner
 
-    monkeypatch.setattr(mod, "run_tasks", lambda *a, **k: pytest.fail("work started"))
+    monkeypatch.setattr(runner, "run_tasks", lambda *a, **k: pytest.fail("work started"))
     with pytest.raises(ValidationError, match=key):
-        dt.run(load_recipe(TINY.replace(*edit)), progress=False)
+        dt.DIRECT_TRACKING.run(load_recipe(TINY.replace(*edit)), progress=False)

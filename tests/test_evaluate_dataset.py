@@ -54,8 +54,8 @@ def _quiet(monkeypatch):
 def test_dataset_and_in_memory_results_agree(tmp_path):
     h5 = tmp_path / "tiny.h5"
     generate(load_recipe(DATASET), h5, progress=False)
-    stored = lx.run_dataset(h5)["figures"]
-    memory = lx.run(load_recipe(IN_MEMORY))["figures"]
+    stored = lx.DATASET_LOCALIZATION.run_dataset(h5)["figures"]
+    memory = lx.LOCALIZATION.run(load_recipe(IN_MEMORY))["figures"]
     for m in ("dipnet_published", "corr"):
         key = f"{m}.c2.agents_4.framework_rmse_m"
         # complex64 storage of the samples is the only difference
@@ -93,9 +93,9 @@ def test_tracking_runs_every_snapshot_and_equals_in_memory_on_any_worker_count(t
     memory, with the same numbers on 1 and 2 workers."""
     h5 = tmp_path / "track.h5"
     generate(load_recipe(_tracking(DATASET)), h5, progress=False)
-    one = lx.run_dataset(h5, workers=1, progress=False)
-    two = lx.run_dataset(h5, workers=2, progress=False)
-    memory = lx.run(load_recipe(_tracking(IN_MEMORY)), progress=False)
+    one = lx.DATASET_LOCALIZATION.run_dataset(h5, workers=1, progress=False)
+    two = lx.DATASET_LOCALIZATION.run_dataset(h5, workers=2, progress=False)
+    memory = lx.LOCALIZATION.run(load_recipe(_tracking(IN_MEMORY)), progress=False)
     assert _non_timing(one["figures"]) == _non_timing(two["figures"])
     for m in ("dipnet_published", "corr", "dpe_sampled"):
         base = f"{m}.c2.agents_4"
@@ -168,17 +168,18 @@ def test_scenario_localization_replaces_keys_for_its_scenario_only():
     method's own subtable still wins, and the other scenario is untouched."""
     over = TWO_SCENARIOS + "scenario_localization = { d1 = { model_error_m = 0.55 } }\n"
     recipe = load_recipe(over)
-    exp, _rspec, lspec, _nets, _specs = lx.prepare(recipe)
-    specs = lx.scenario_localization_specs(recipe, exp, lspec)
+    plan = lx.LOCALIZATION.prepare(recipe)
+    specs, lspec = plan.lspecs, plan.lspec
+    assert specs == lx.scenario_localization_specs(recipe, plan.exp, lspec)
     assert specs["c2"] is lspec
     assert specs["c2"].options_for("dipnet").model_error_m == 0.3
     assert specs["d1"].options_for("dipnet").model_error_m == 0.55
     assert specs["d1"].options_for("corr").model_error_m == 0.0  # its own subtable wins
-    base = lx.run(load_recipe(TWO_SCENARIOS))["figures"]
-    same = lx.run(
+    base = lx.LOCALIZATION.run(load_recipe(TWO_SCENARIOS))["figures"]
+    same = lx.LOCALIZATION.run(
         load_recipe(TWO_SCENARIOS + "scenario_localization = { d1 = { model_error_m = 0.3 } }\n")
     )["figures"]
-    changed = lx.run(recipe)["figures"]
+    changed = lx.LOCALIZATION.run(recipe)["figures"]
     np.testing.assert_equal(_non_timing(same), _non_timing(base))  # restating the base value
     for key in ("dipnet.c2.agents_4.framework_rmse_m", "corr.d1.agents_4.framework_rmse_m"):
         assert changed[key] == base[key]
@@ -200,4 +201,4 @@ def test_scenario_localization_errors_name_the_key(line, match):
     from phyloc.errors import ValidationError
 
     with pytest.raises(ValidationError, match=match):
-        lx.run(load_recipe(TWO_SCENARIOS + line + "\n"))
+        lx.LOCALIZATION.run(load_recipe(TWO_SCENARIOS + line + "\n"))

@@ -20,7 +20,7 @@ from hypothesis import strategies as st  # noqa: E402
 from phyloc.cli import main  # noqa: E402
 from phyloc.config import dumps_toml, load_recipe  # noqa: E402
 from phyloc.errors import PhylocError  # noqa: E402
-from phyloc.evaluation.recipes import validate_recipe  # noqa: E402
+from phyloc.evaluation.kinds import validate_recipe  # noqa: E402
 
 settings.register_profile(
     "fast", max_examples=40, deadline=None, suppress_health_check=list(HealthCheck)

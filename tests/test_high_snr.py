@@ -50,7 +50,7 @@ PLAIN = "[localization.corr]\noutlier_nats = inf\nmodel_error_m = 0.0\n"
 
 
 def _rmse(power, extra=""):
-    res = lx.run(load_recipe(RECIPE.format(power=power, extra=extra)), progress=False)
+    res = lx.LOCALIZATION.run(load_recipe(RECIPE.format(power=power, extra=extra)), progress=False)
     return res["figures"]["corr.c2_informed.agents_12.framework_rmse_m"]
 
 
@@ -78,7 +78,9 @@ def test_small_network_error_does_not_grow_with_the_transmit_power(monkeypatch):
     there the RMSE is over all pairs."""
     monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
     figs = {
-        p: lx.run(load_recipe(SMALL.format(power=p, extra="")), progress=False)["figures"]
+        p: lx.LOCALIZATION.run(load_recipe(SMALL.format(power=p, extra="")), progress=False)[
+            "figures"
+        ]
         for p in (0.0, 60.0, 200.0)
     }
     keys = [

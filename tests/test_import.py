@@ -130,8 +130,8 @@ def test_exported_and_imported_dataset_gives_identical_localization(c2, tmp_path
     with pds.open(out) as ds, pds.open(c2 / "c2.h5") as orig:
         assert ds.system == orig.system and ds.ways == orig.ways == 1
         assert ds.load_recipe().seed == 77 and ds.name == "tiny"
-    a = lx.run_dataset(c2 / "c2.h5", progress=False)
-    b = lx.run_dataset(out, progress=False)
+    a = lx.DATASET_LOCALIZATION.run_dataset(c2 / "c2.h5", progress=False)
+    b = lx.DATASET_LOCALIZATION.run_dataset(out, progress=False)
     fa, fb = a["figures"], b["figures"]
     assert fa.keys() == fb.keys()
     timing = [k for k in fa if "runtime" in k or k.endswith("_s")]
@@ -259,7 +259,7 @@ def test_a_recording_with_a_missing_link_evaluates(c2, tmp_path):
     with pds.open(out) as ds:
         assert ds["links/count"][...].tolist() == [[11], [11]]
         los = ds["channel/los"][:, 0, :11]
-    res = lx.run_dataset(out, progress=False)["figures"]
+    res = lx.DATASET_LOCALIZATION.run_dataset(out, progress=False)["figures"]
     assert np.isfinite(res["corr.c2.agents_4.framework_rmse_m"])
     assert res["c2.los_fraction"] == los.mean()  # the 22 recorded links, no more
 
@@ -291,7 +291,7 @@ def test_without_positions_info_works_and_evaluate_refuses(c2, tmp_path):
         assert np.isnan(ds["nodes/positions"][...]).all()
         assert ds.snapshot(0, 0).received.shape == (12, 257)
     with pytest.raises(pds.DatasetError, match="no ground-truth positions"):
-        lx.run_dataset(out, progress=False)
+        lx.DATASET_LOCALIZATION.run_dataset(out, progress=False)
     re_export = pds.export_arrays(out, tmp_path / "again.npz")
     assert "positions" not in _load(re_export)  # NaN is not passed off as truth
     arrays["recipe"] = np.asarray(str(arrays["recipe"]).replace('"truth_free"', '"informed"'))

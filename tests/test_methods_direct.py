@@ -249,7 +249,7 @@ def test_a_users_direct_method_runs_in_the_localization_experiment(monkeypatch):
     monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
     method = Method("shrink_test", family="direct", run=_shrink, options=_ShrinkOptions)
     monkeypatch.setitem(METHODS._methods, "shrink_test", method)  # registered for this test only
-    res = lx.run(load_recipe(RECIPE), progress=False)
+    res = lx.LOCALIZATION.run(load_recipe(RECIPE), progress=False)
     f = res["figures"]
     assert np.isfinite(f["shrink_test.c2.agents_4.framework_rmse_m"])
     # the start figure is the prior centres' RMSE; the user's method returns the mean of Q =

@@ -5,6 +5,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from phyloc.evaluation import front_end
 from phyloc.evaluation import localization_experiment as lx
 
 
@@ -20,10 +21,10 @@ def test_three_agents_with_one_silent_pair_leave_its_distance_out():
     net = _net([[0.0, 0.0], [50.0, 0.0], [20.0, 40.0]], [False] * 3)
     links = np.array([[0, 1], [1, 0], [0, 2], [2, 0], [1, 2], [2, 1]])
     detected = np.array([True, False, False, False, False, True])  # 0-1 and 1-2 only
-    obs = lx.observable_pairs(net, 0, links, detected, np.random.default_rng(0))
+    obs = front_end.observable_pairs(net, 0, links, detected, np.random.default_rng(0))
     # pairs in framework_distance_errors order: (0,1) (0,2) (1,0) (1,2) (2,0) (2,1)
     assert obs.tolist() == [True, False, True, True, False, True]
-    every = lx.observable_pairs(net, 0, links, np.ones(6, bool), np.random.default_rng(0))
+    every = front_end.observable_pairs(net, 0, links, np.ones(6, bool), np.random.default_rng(0))
     assert every.all()
 
 
@@ -40,7 +41,7 @@ def test_nees_is_the_closed_form_with_anchors_and_averages_dim():
     e = np.einsum("nij,nj->ni", np.linalg.cholesky(P), rng.standard_normal((n_ag, 2)))
     est = truth.copy()
     est[:n_ag] += e
-    got = lx._nees(est, P, truth, is_anchor)
+    got = front_end._nees(est, P, truth, is_anchor)
     want = np.einsum("ni,ni->n", e, np.linalg.solve(P, e[..., None])[..., 0])
     np.testing.assert_allclose(got, want, rtol=1e-9)
     assert abs(got.mean() - 2.0) < 4 * 2.0 / np.sqrt(n_ag)  # χ²₂: mean 2, std 2
@@ -58,18 +59,18 @@ def test_nees_is_invariant_to_the_anchor_free_gauge_and_survives_singular_belief
     R = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
     moved = est @ R.T + np.array([30.0, -12.0])
     free = np.zeros(6, bool)
-    a = lx._nees(est, P, truth, free)
-    b = lx._nees(moved, R @ P @ R.T, truth, free)
+    a = front_end._nees(est, P, truth, free)
+    b = front_end._nees(moved, R @ P @ R.T, truth, free)
     np.testing.assert_allclose(a, b, rtol=1e-9)
     P[2] = 0.0
     P[3] = np.nan  # a method that publishes no covariance for one agent
     P[4] = [[1e-300, 0.0], [0.0, 1e-300]]  # near-singular: a huge, finite NEES
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        c = lx._nees(est, P, truth, free)
+        c = front_end._nees(est, P, truth, free)
     assert np.all(np.isnan(c[2:4])) and np.all(np.isfinite(np.delete(c, [2, 3])))
     assert c[4] > 1e250
-    assert np.all(np.isnan(lx._nees(est, None, truth, free)))
+    assert np.all(np.isnan(front_end._nees(est, None, truth, free)))
 
 
 def test_truth_free_start_keys_are_validated():
@@ -117,7 +118,7 @@ def test_an_informed_only_run_reports_and_plots_its_own_rows(tmp_path, monkeypat
     from phyloc.config import load_recipe
 
     monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
-    res = lx.run(load_recipe(INFORMED_ONLY), progress=False)
+    res = lx.LOCALIZATION.run(load_recipe(INFORMED_ONLY), progress=False)
     frac = res["figures"]["c2.agents_4.unobservable_pair_fraction"]
     assert frac > 0  # at −40 dBm some pairs have no detected link
     lines = lx.summary_lines(res)

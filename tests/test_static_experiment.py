@@ -10,8 +10,9 @@ import pytest
 from phyloc.cli import main
 from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
+from phyloc.evaluation.experiment import experiment_from_dict
 from phyloc.evaluation import static_experiment as se
-from phyloc.localization.static.polygons import EllipseRegion
+from phyloc.localization.static.ellipses import EllipseRegion
 
 DATASETS = Path(__file__).resolve().parents[1] / "datasets"
 
@@ -40,7 +41,7 @@ bandwidth = "silverman"
 
 @pytest.fixture(scope="module")
 def tiny():
-    return se.run(load_recipe(TINY), progress=False)
+    return se.STATIC.run(load_recipe(TINY), progress=False)
 
 
 def test_every_documented_figure_is_there(tiny):
@@ -141,10 +142,10 @@ def test_default_methods_follow_table_1():
         "nbp_mixture",
     )
     recipe = load_recipe(DATASETS / "poa_nbp.toml")
-    exp = se.StaticExperimentSpec.from_dict(recipe.section("experiment"))
+    exp = experiment_from_dict(se.StaticExperimentSpec, recipe.section("experiment"))
     assert exp.methods == se.METHODS
     assert max(exp.sample_sweep) >= 1000 and {800, 1600} <= set(exp.sample_sweep)
-    fast = se.StaticExperimentSpec.from_dict(recipe.section("experiment"), fast=True)
+    fast = experiment_from_dict(se.StaticExperimentSpec, recipe.section("experiment"), fast=True)
     assert max(fast.sample_sweep) <= 100
 
 
@@ -182,7 +183,7 @@ def test_ellipse_region_is_uniform():
 
 
 def test_same_results_with_one_and_two_workers(tiny):
-    two = se.run(load_recipe(TINY), workers=2, progress=False)
+    two = se.STATIC.run(load_recipe(TINY), workers=2, progress=False)
     names = [n for n in tiny["figures"] if not se.is_timing(n)]
     assert names == [n for n in two["figures"] if not se.is_timing(n)]
     assert "poa_nbp.mean_error_m" in names and "poa.time_per_node_s" not in names
@@ -195,11 +196,11 @@ def test_same_results_with_one_and_two_workers(tiny):
 def test_sample_sweep_topologies_limits_the_sweep_only(tiny):
     """``sample_sweep_topologies = 1`` in the 2-topology recipe: the sweep's figures are those
     of a 1-topology run; every other figure is that of the unlimited recipe."""
-    limited = se.run(
+    limited = se.STATIC.run(
         load_recipe(TINY.replace("topologies = 2", "topologies = 2\nsample_sweep_topologies = 1")),
         progress=False,
     )
-    one = se.run(load_recipe(TINY.replace("topologies = 2", "topologies = 1")), progress=False)
+    one = se.STATIC.run(load_recipe(TINY.replace("topologies = 2", "topologies = 1")), progress=False)
     f = limited["figures"]
     swept = [n for n in f if n.startswith(("poa_nbp.ns20.", "poa_nbp.ns40."))]
     assert "poa_nbp.ns20.mean_error_m" in swept
@@ -239,15 +240,15 @@ _OVERHEAD = (
 def test_recipe_errors_name_the_key(edit, key):
     recipe = load_recipe(TINY.replace(*edit))
     with pytest.raises(ValidationError) as exc:
-        se.run(recipe, progress=False)
+        se.STATIC.run(recipe, progress=False)
     assert exc.value.field == key
 
 
 def test_shipped_recipe_validates():
     recipe = load_recipe(DATASETS / "poa_nbp.toml")
-    exp = se.StaticExperimentSpec.from_dict(recipe.section("experiment"))
+    exp = experiment_from_dict(se.StaticExperimentSpec, recipe.section("experiment"))
     assert exp.topologies == 200 and exp.n_agents == 100 and exp.poa_n_edges == 16
-    fast = se.StaticExperimentSpec.from_dict(recipe.section("experiment"), fast=True)
+    fast = experiment_from_dict(se.StaticExperimentSpec, recipe.section("experiment"), fast=True)
     assert fast.topologies < exp.topologies
     se.method_options(recipe.section("localization"), exp)
 

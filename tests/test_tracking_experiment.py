@@ -40,7 +40,7 @@ n_lambda = 5
 @pytest.fixture(scope="module")
 def fast_s1():
     recipe = load_recipe(DATASETS / "pfbp_scenario1.toml")
-    return te.run(recipe, fast=True, progress=False)
+    return te.TRACKING.run(recipe, fast=True, progress=False)
 
 
 def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
@@ -133,8 +133,8 @@ def test_pfbp_is_not_below_the_pcrlb(fast_s1):
 
 def test_same_results_with_one_and_two_workers():
     recipe = load_recipe(TINY)
-    one = te.run(recipe, workers=1, progress=False)
-    two = te.run(recipe, workers=2, progress=False)
+    one = te.TRACKING.run(recipe, workers=1, progress=False)
+    two = te.TRACKING.run(recipe, workers=2, progress=False)
     names = [n for n in one["figures"] if not te.is_timing(n)]
     assert names == [n for n in two["figures"] if not te.is_timing(n)]
     assert any(n.startswith("sirbp.") for n in names)
@@ -143,7 +143,7 @@ def test_same_results_with_one_and_two_workers():
     for n, x in one["series"].items():
         np.testing.assert_array_equal(x, two["series"][n], err_msg=n)
     # different runs really see different scenarios
-    other = te.run(load_recipe(TINY.replace("seed = 3", "seed = 4")), progress=False)
+    other = te.TRACKING.run(load_recipe(TINY.replace("seed = 3", "seed = 4")), progress=False)
     assert other["figures"]["pfbp.s1.k3.rmse_p_m"] != one["figures"]["pfbp.s1.k3.rmse_p_m"]
 
 
@@ -181,19 +181,21 @@ def test_bad_recipe_keys_fail_before_any_work(monkeypatch, edit, fast, key):
     def no_work(*args, **kwargs):
         raise AssertionError("work started")
 
-    monkeypatch.setattr(te, "run_tasks", no_work)
+    import phyloc.evaluation.experiment as runner
+
+    monkeypatch.setattr(runner, "run_tasks", no_work)  # the one runner every kind uses
     old, new = edit
     assert old in TINY
     recipe = load_recipe(TINY.replace(old, new, 1))
     with pytest.raises(ValidationError) as err:
-        te.run(recipe, fast=fast, progress=False)
+        te.TRACKING.run(recipe, fast=fast, progress=False)
     assert err.value.field == key
 
 
 def test_sage_measurements_on_c2_waveforms():
     """``measurements = "sage"``: PF-BP runs on SAGE ranges of simulated C2 waveforms."""
     recipe = load_recipe(DATASETS / "pfbp_sage_c2.toml")
-    res = te.run(recipe, fast=True, progress=False)
+    res = te.TRACKING.run(recipe, fast=True, progress=False)
     f = res["figures"]
     assert res["meta"]["measurements"] == "sage"
     assert 0.0 < f["sage.c2.valid_fraction"] <= 1.0
@@ -242,8 +244,8 @@ def test_a_variant_runs_its_base_method_with_its_own_table():
         "method_options = { sirbp = { n_particles = 500 } }",
         "method_options = { sirbp = { n_particles = 300, regularize = true } }",
     )
-    a = te.run(load_recipe(variant), progress=False)
-    b = te.run(load_recipe(plain), progress=False)
+    a = te.TRACKING.run(load_recipe(variant), progress=False)
+    b = te.TRACKING.run(load_recipe(plain), progress=False)
     assert a["meta"]["bases"] == {"pfbp": "pfbp", "sirbp_small": "sirbp"}
     assert a["meta"]["labels"]["sirbp_small"] == "sirbp_small"
     assert a["meta"]["options"]["sirbp_small"]["n_particles"] == 300
@@ -259,7 +261,7 @@ def test_a_variant_runs_its_base_method_with_its_own_table():
         ('method = "sirbp"\n', "", "localization.sirbp_small"),  # no base: an unknown table
     ):
         with pytest.raises(ValidationError) as err:
-            te.run(load_recipe(variant.replace(old, new, 1)), progress=False)
+            te.TRACKING.run(load_recipe(variant.replace(old, new, 1)), progress=False)
         assert err.value.field.startswith(key), err.value.field
 
 
@@ -339,12 +341,12 @@ def test_method_runs_limits_one_method_and_leaves_the_others_alone():
     1-run recipe (task streams do not depend on the number of runs), with the bounds of that
     run; every other method's figures are those of the recipe without ``method_runs``."""
     base = TINY.replace("runs = 2", "runs = 3")
-    limited = te.run(
+    limited = te.TRACKING.run(
         load_recipe(base.replace("runs = 3", "runs = 3\nmethod_runs = { sirbp = 1 }")),
         progress=False,
     )
-    full = te.run(load_recipe(base), progress=False)
-    one = te.run(load_recipe(TINY.replace("runs = 2", "runs = 1")), progress=False)
+    full = te.TRACKING.run(load_recipe(base), progress=False)
+    one = te.TRACKING.run(load_recipe(TINY.replace("runs = 2", "runs = 1")), progress=False)
     f, g, h = limited["figures"], full["figures"], one["figures"]
     assert f["sirbp.s1.runs"] == 1 and f["pfbp.s1.runs"] == g["sirbp.s1.runs"] == 3
     assert limited["meta"]["method_runs"] == {"sirbp": 1}

@@ -35,6 +35,7 @@ from scipy.optimize import brentq, minimize_scalar
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
+from phyloc.reporting import new_figure, save_figure
 
 #: DiPNet §V-A: N = 2569 subcarriers.
 DEFAULT_N = 2569
@@ -277,13 +278,8 @@ def figure3(nu=1.0, n_subcarriers=DEFAULT_N, delta_max=20.0, n_points=401):
 def plot_figure3(result: dict, path, nu: float) -> None:
     """DiPNet Fig. 3: belief shift against δ for DiPNet, its bound, the two-step model, one
     sample."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     s = result["series"]
-    fig = Figure(figsize=(7.5, 4.5), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = new_figure(size=(7.5, 4.5))
     ax.plot(s["delta"], s["dipnet"], color="C0", label="DiPNet (ascent from the truth)")
     ax.plot(s["delta"], s["bound"], color="C3", label="Theorem 2 bound, DiPNet eq. (46)")
     ax.plot(s["delta"], s["two_step"], color="C2", label="two-step Gaussian, δ/(1 + ν)")
@@ -294,4 +290,4 @@ def plot_figure3(result: dict, path, nu: float) -> None:
     ax.set_title(f"Belief shift (DiPNet Fig. 3), ν = {nu:g}")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path)

@@ -27,8 +27,8 @@ Examples
 
 References
 ----------
-W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information approach,"
-arXiv:2212.14554, 2022.
+FIM: W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information
+approach," arXiv:2212.14554, 2022.
 """
 
 from phyloc.control.fim import control_set, position_cost, range_information, update_covariance

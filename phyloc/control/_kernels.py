@@ -10,8 +10,8 @@ position traces (FIM [10]) per node. Its NumPy twin is ``level_numpy`` in
 
 References
 ----------
-W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information approach,"
-arXiv:2212.14554, 2022.
+FIM: W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information
+approach," arXiv:2212.14554, 2022.
 """
 
 from __future__ import annotations

@@ -17,8 +17,8 @@ The policies of one trial share the agents' true trajectories and the measuremen
 
 References
 ----------
-W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information approach,"
-arXiv:2212.14554, 2022.
+FIM: W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information
+approach," arXiv:2212.14554, 2022.
 """
 
 from __future__ import annotations

@@ -12,8 +12,8 @@ policy                  the next control of every mobile anchor
 
 References
 ----------
-W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information approach,"
-arXiv:2212.14554, 2022.
+FIM: W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information
+approach," arXiv:2212.14554, 2022.
 """
 
 from __future__ import annotations

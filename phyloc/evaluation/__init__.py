@@ -1,4 +1,8 @@
-"""phyloc.evaluation (see DESIGN.md): metrics, experiments, figures.
+"""phyloc.evaluation: metrics, the experiment kinds ``phyloc evaluate`` runs, figures.
+
+:mod:`~phyloc.evaluation.experiment` holds the one runner every kind uses,
+:mod:`~phyloc.evaluation.kinds` the registry of kinds, :mod:`~phyloc.evaluation.sections` the
+shared recipe sections and :mod:`~phyloc.evaluation.front_end` the direct measurement front end.
 
 References
 ----------

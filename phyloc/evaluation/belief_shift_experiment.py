@@ -30,10 +30,7 @@ from dataclasses import dataclass
 
 from phyloc import _validate as v
 from phyloc.analysis.belief_shift import figure3, plot_figure3
-from phyloc.config import Recipe
-from phyloc.evaluation._common import experiment_from_dict
-
-SUMMARY_HEADERS = ["figure", "value [c0/B]"]
+from phyloc.evaluation.experiment import Experiment
 
 
 @dataclass(frozen=True)
@@ -59,51 +56,46 @@ class BeliefShiftSpec:
         v.positive("experiment.delta_max", self.delta_max)
         v.integer("experiment.points", self.points, minimum=2)
 
-    @classmethod
-    def from_dict(cls, d: dict, *, fast: bool = False) -> BeliefShiftSpec:
-        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        return experiment_from_dict(cls, d, fast=fast)
+
+class BeliefShiftExperiment(Experiment):
+    """``kind = "belief_shift"``: closed-form curves, no tasks (the seed is unused)."""
+
+    kind = "belief_shift"
+    title = "the belief shift under a distance offset, DiPNet against two-step (DiPNet Fig. 3)"
+    spec = BeliefShiftSpec
+    headers = ("figure", "value [c0/B]")
+
+    def prepare(self, recipe, *, fast=False):
+        return self.experiment_spec(recipe, fast=fast), recipe.system.n_subcarriers
+
+    def tasks(self, plan):
+        return []
+
+    def aggregate(self, plan, keys, results, ctx):
+        exp, n = plan
+        res = figure3(exp.nu, n, exp.delta_max, exp.points)
+        return (
+            {f"belief_shift.{k}": x for k, x in res["figures"].items()},
+            {f"belief_shift.{k}": x for k, x in res["series"].items()},
+        )
+
+    def meta(self, plan, ctx):
+        exp, n = plan
+        return {"nu": exp.nu, "n_subcarriers": n, "delta_max": exp.delta_max, "points": exp.points}
+
+    def summary_rows(self, results):
+        """One row per belief-shift figure."""
+        return [(k, x) for k, x in results["figures"].items() if k.startswith("belief_shift.")]
+
+    def summary_lines(self, results):
+        """ν and N."""
+        m = results["meta"]
+        return [f"ν = {m['nu']:g}, N = {m['n_subcarriers']}; δ from 0 to {m['delta_max']:g} c0/B"]
+
+    def plot(self, results, path):
+        """DiPNet Fig. 3 (see :func:`~phyloc.analysis.belief_shift.plot_figure3`)."""
+        ser = {k.removeprefix("belief_shift."): x for k, x in results["series"].items()}
+        plot_figure3({"series": ser, "figures": {}}, path, results["meta"]["nu"])
 
 
-def prepare(recipe: Recipe, *, fast: bool = False):
-    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
-    full one) and return what it runs; no work is done (``phyloc evaluate`` and
-    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
-    return BeliefShiftSpec.from_dict(recipe.section("experiment"), fast=fast)
-
-
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "belief_shift"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    exp = prepare(recipe, fast=fast)
-    n = recipe.system.n_subcarriers
-    res = figure3(exp.nu, n, exp.delta_max, exp.points)
-    return {
-        "figures": {f"belief_shift.{k}": x for k, x in res["figures"].items()},
-        "series": {f"belief_shift.{k}": x for k, x in res["series"].items()},
-        "meta": {
-            "recipe": recipe.name,
-            "kind": recipe.kind,
-            "fast": fast,
-            "nu": exp.nu,
-            "n_subcarriers": n,
-            "delta_max": exp.delta_max,
-            "points": exp.points,
-        },
-    }
-
-
-def summary_rows(results: dict):
-    """One row per belief-shift figure."""
-    return [(k, x) for k, x in results["figures"].items() if k.startswith("belief_shift.")]
-
-
-def summary_lines(results: dict):
-    """ν and N."""
-    m = results["meta"]
-    return [f"ν = {m['nu']:g}, N = {m['n_subcarriers']}; δ from 0 to {m['delta_max']:g} c0/B"]
-
-
-def plot(results: dict, path) -> None:
-    """DiPNet Fig. 3 (see :func:`~phyloc.analysis.belief_shift.plot_figure3`)."""
-    ser = {k.removeprefix("belief_shift."): x for k, x in results["series"].items()}
-    plot_figure3({"series": ser, "figures": {}}, path, results["meta"]["nu"])
+BELIEF_SHIFT = BeliefShiftExperiment()

@@ -49,24 +49,15 @@ from phyloc.analysis.cci import (
     cci_monte_carlo,
     expected_powers,
     expected_scf,
+    exponential_rates,
     min_bandwidth_hz,
     negative_above,
     require_los,
 )
-from phyloc.config import Recipe
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict
-from phyloc.parallel import run_tasks
+from phyloc.evaluation.experiment import Experiment, RunContext
 from phyloc.phy.system import C0, OFDMSystem
-
-SUMMARY_HEADERS = [
-    "scenario",
-    "bound < 0 above [m]",
-    "exponential < 0 above [m]",
-    "MC < 0 above [m]",
-    "MC vs exp. max |z|",
-    "min B at d [MHz]",
-]
+from phyloc.reporting import new_figure, save_figure
 
 
 @dataclass(frozen=True)
@@ -118,12 +109,6 @@ class CCIExperimentSpec:
         object.__setattr__(self, "d0_range_m", (lo, hi))
         v.positive("experiment.distance_m", self.distance_m)
 
-    @classmethod
-    def from_dict(cls, d: dict, *, fast: bool = False) -> CCIExperimentSpec:
-        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        d = {k: tuple(x) if isinstance(x, list) else x for k, x in d.items()}
-        return experiment_from_dict(cls, d, fast=fast)
-
 
 def _load(scenarios, where: str):
     """``{name: Scenario}`` in order; names must be unique and have a LOS part."""
@@ -157,81 +142,16 @@ def study(
     progress=True,
     where: str = "experiment.scenarios",
 ):
-    """Closed-form curves, Monte Carlo check and summary numbers for ``scenarios``.
+    """Closed-form curves, Monte Carlo check and summary numbers for ``scenarios``: the
+    ``cci`` experiment on a plan built from arguments instead of a recipe.
 
     ``where`` names the scenario list in error messages. Returns ``{"figures", "series",
     "meta"}`` (names in the module docstring).
     """
     system = OFDMSystem() if system is None else system
     exp = CCIExperimentSpec(scenarios=tuple(scenarios)) if exp is None else exp
-    scns = _load(scenarios, where)
-    for scn in scns.values():
-        scn.check_frequency(system.carrier_frequency_hz)
-    mc_d = np.geomspace(*exp.d0_range_m, exp.mc_points)
-    payloads = [(scn, float(d), exp.links, system) for scn in scns.values() for d in mc_d]
-    mc = []
-    if exp.links:
-        mc = run_tasks(
-            _mc_task,
-            payloads,
-            seed,
-            workers=workers,
-            scheduler=scheduler,
-            desc="CCI Monte Carlo",
-            progress=progress,
-        )
-    figures, series, rates = {}, {}, {}
-    for j, (name, scn) in enumerate(scns.items()):
-        c = cci_curves(scn, system, points=exp.points, d0_range_m=exp.d0_range_m)
-        p = f"cci.{name}"
-        figures[f"{p}.negative_above_m"] = c["negative_above_m"]
-        figures[f"{p}.exponential.negative_above_m"] = c["exponential_negative_above_m"]
-        at = expected_powers(scn, [exp.distance_m], system)
-        figures[f"{p}.min_bandwidth_hz"] = float(min_bandwidth_hz(at)[0])
-        for key in ("bound", "exponential", "awgn"):
-            figures[f"{p}.{key}_at_max_m"] = float(c[key][-1])
-        series.update(
-            {
-                f"{p}.d0_m": c["d0_m"],
-                f"{p}.bound": c["bound"],
-                f"{p}.exponential": c["exponential"],
-                f"{p}.awgn": c["awgn"],
-                f"{p}.p_los": c["powers"].p_los,
-                f"{p}.other_power": c["powers"].other_power,
-                f"{p}.min_bandwidth_hz": min_bandwidth_hz(c["powers"]),
-            }
-        )
-        rates[name] = c["rates"]
-        offsets = np.linspace(-3.0, 3.0, 121) * C0 / system.bandwidth_hz
-        scf = expected_scf(scn, exp.distance_m, np.abs(offsets), system)
-        figures[f"{p}.scf_argmax_offset_m"] = float(abs(offsets[np.argmax(scf)]))
-        series.update({f"{p}.scf_offset_m": offsets, f"{p}.scf": scf})
-        if mc:
-            res = np.array(mc[j * exp.mc_points : (j + 1) * exp.mc_points])
-            m, se = res[:, 0], res[:, 1]
-            pw = expected_powers(scn, mc_d, system)
-            z_exp = _z(m - cci_exponential(pw, c["rates"], system), se)
-            z_bound = _z(m - cci_bound(pw, system), se)
-            figures[f"{p}.mc.negative_above_m"] = negative_above(mc_d, m)
-            figures[f"{p}.mc_z"] = float(np.max(np.abs(z_exp)))
-            figures[f"{p}.mc_above_bound_z"] = float(np.max(z_bound))
-            series.update({f"{p}.mc_d0_m": mc_d, f"{p}.mc": m, f"{p}.mc_se": se})
-    meta = {
-        "scenarios": list(scns),
-        "bandwidth_hz": system.bandwidth_hz,
-        "n_subcarriers": system.n_subcarriers,
-        "subcarrier_spacing_hz": system.subcarrier_spacing_hz,
-        "carrier_frequency_hz": system.carrier_frequency_hz,
-        "links": exp.links,
-        "mc_points": exp.mc_points,
-        "points": exp.points,
-        "d0_range_m": list(exp.d0_range_m),
-        "distance_m": exp.distance_m,
-        "seed": seed,
-        "rates_per_s": rates,
-        "normalization": "expected direct-path power of a LOS link, E[A_0 | LOS]",
-    }
-    return {"figures": figures, "series": series, "meta": meta}
+    plan = CCI.plan(scenarios, system, exp, where)
+    return CCI.execute(plan, RunContext(seed, False, workers, scheduler, progress))
 
 
 def _z(diff, se):
@@ -242,29 +162,6 @@ def _z(diff, se):
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(se > 0, diff / se, np.sign(diff) * np.inf)
     return np.where(tiny, 0.0, z)
-
-
-def prepare(recipe: Recipe, *, fast: bool = False):
-    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
-    full one) and return what it runs; no work is done (``phyloc evaluate`` and
-    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
-    return CCIExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
-
-
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "cci"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    exp = prepare(recipe, fast=fast)
-    res = study(
-        exp.scenarios,
-        recipe.system,
-        exp,
-        seed=recipe.seed,
-        workers=workers,
-        scheduler=scheduler,
-        progress=progress,
-    )
-    res["meta"].update({"recipe": recipe.name, "kind": recipe.kind, "fast": fast})
-    return res
 
 
 def _fmt(x: float) -> str:
@@ -305,13 +202,8 @@ def summary_lines(results: dict):
 
 def plot(results: dict, path) -> None:
     """DiPNet Fig. 2 (CCI against d0) and the minimal bandwidth of eq. (44) against d0."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     ser, meta = results["series"], results["meta"]
-    fig = Figure(figsize=(16.0, 4.8))
-    FigureCanvasAgg(fig)
-    ax, bx, cx = fig.subplots(1, 3, gridspec_kw={"width_ratios": [1.5, 1, 1]})
+    fig, (ax, bx, cx) = new_figure(1, 3, size=(16.0, 4.8), width_ratios=[1.5, 1, 1])
     unit = C0 / meta["bandwidth_hz"]
     for i, s in enumerate(meta["scenarios"]):
         col = f"C{i}"
@@ -354,5 +246,112 @@ def plot(results: dict, path) -> None:
     cx.set_title(f"Expected SCF (35) around the truth, d0 = {meta['distance_m']:g} m")
     cx.grid(True, alpha=0.3)
     cx.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path)
+
+
+class CCIExperiment(Experiment):
+    """``kind = "cci"``: closed forms per scenario; one Monte Carlo task per (scenario,
+    distance)."""
+
+    kind = "cci"
+    title = "the conditional concavity indicator of channel scenarios (DiPNet Fig. 2)"
+    unit = "Monte Carlo distance"
+    spec = CCIExperimentSpec
+    task = staticmethod(_mc_task)
+    progress_label = "CCI Monte Carlo"
+    headers = (
+        "scenario",
+        "bound < 0 above [m]",
+        "exponential < 0 above [m]",
+        "MC < 0 above [m]",
+        "MC vs exp. max |z|",
+        "min B at d [MHz]",
+    )
+
+    def prepare(self, recipe, *, fast=False):
+        exp = self.experiment_spec(recipe, fast=fast)
+        return self.plan(exp.scenarios, recipe.system, exp, "experiment.scenarios")
+
+    @staticmethod
+    def plan(scenarios, system, exp, where):
+        """``(system, exp, {name: Scenario}, Monte Carlo distances)``, each scenario checked."""
+        scns = _load(scenarios, where)
+        for scn in scns.values():
+            scn.check_frequency(system.carrier_frequency_hz)
+        return system, exp, scns, np.geomspace(*exp.d0_range_m, exp.mc_points)
+
+    def tasks(self, plan):
+        system, exp, scns, mc_d = plan
+        if not exp.links:
+            return []
+        return [
+            ((name, float(d)), (scn, float(d), exp.links, system))
+            for name, scn in scns.items()
+            for d in mc_d
+        ]
+
+    def aggregate(self, plan, keys, results, ctx):
+        system, exp, scns, mc_d = plan
+        mc = results
+        figures, series = {}, {}
+        for j, (name, scn) in enumerate(scns.items()):
+            c = cci_curves(scn, system, points=exp.points, d0_range_m=exp.d0_range_m)
+            p = f"cci.{name}"
+            figures[f"{p}.negative_above_m"] = c["negative_above_m"]
+            figures[f"{p}.exponential.negative_above_m"] = c["exponential_negative_above_m"]
+            at = expected_powers(scn, [exp.distance_m], system)
+            figures[f"{p}.min_bandwidth_hz"] = float(min_bandwidth_hz(at)[0])
+            for key in ("bound", "exponential", "awgn"):
+                figures[f"{p}.{key}_at_max_m"] = float(c[key][-1])
+            series.update(
+                {
+                    f"{p}.d0_m": c["d0_m"],
+                    f"{p}.bound": c["bound"],
+                    f"{p}.exponential": c["exponential"],
+                    f"{p}.awgn": c["awgn"],
+                    f"{p}.p_los": c["powers"].p_los,
+                    f"{p}.other_power": c["powers"].other_power,
+                    f"{p}.min_bandwidth_hz": min_bandwidth_hz(c["powers"]),
+                }
+            )
+            offsets = np.linspace(-3.0, 3.0, 121) * C0 / system.bandwidth_hz
+            scf = expected_scf(scn, exp.distance_m, np.abs(offsets), system)
+            figures[f"{p}.scf_argmax_offset_m"] = float(abs(offsets[np.argmax(scf)]))
+            series.update({f"{p}.scf_offset_m": offsets, f"{p}.scf": scf})
+            if mc:
+                res = np.array(mc[j * exp.mc_points : (j + 1) * exp.mc_points])
+                m, se = res[:, 0], res[:, 1]
+                pw = expected_powers(scn, mc_d, system)
+                z_exp = _z(m - cci_exponential(pw, c["rates"], system), se)
+                z_bound = _z(m - cci_bound(pw, system), se)
+                figures[f"{p}.mc.negative_above_m"] = negative_above(mc_d, m)
+                figures[f"{p}.mc_z"] = float(np.max(np.abs(z_exp)))
+                figures[f"{p}.mc_above_bound_z"] = float(np.max(z_bound))
+                series.update({f"{p}.mc_d0_m": mc_d, f"{p}.mc": m, f"{p}.mc_se": se})
+        return figures, series
+
+    def meta(self, plan, ctx):
+        system, exp, scns, _ = plan
+        rates = {name: exponential_rates(scn) for name, scn in scns.items()}
+        return {
+            "scenarios": list(scns),
+            "bandwidth_hz": system.bandwidth_hz,
+            "n_subcarriers": system.n_subcarriers,
+            "subcarrier_spacing_hz": system.subcarrier_spacing_hz,
+            "carrier_frequency_hz": system.carrier_frequency_hz,
+            "links": exp.links,
+            "mc_points": exp.mc_points,
+            "points": exp.points,
+            "d0_range_m": list(exp.d0_range_m),
+            "distance_m": exp.distance_m,
+            "seed": ctx.seed,
+            "rates_per_s": rates,
+            "normalization": "expected direct-path power of a LOS link, E[A_0 | LOS]",
+        }
+
+    summary_rows = staticmethod(summary_rows)
+    summary_lines = staticmethod(summary_lines)
+    plot = staticmethod(plot)
+
+
+CCI = CCIExperiment()

@@ -29,36 +29,28 @@ Series: ``p.log10_mse_by_step`` (FIM Fig. 5), the example trial ``experiment.exa
 
 References
 ----------
-W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information approach,"
-arXiv:2212.14554, 2022.
+FIM: W. Zhang, B. Teague and F. Meyer, "Cooperative localization: a Fisher information
+approach," arXiv:2212.14554, 2022.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc.config import Recipe
 from phyloc.control.loop import ControlScenario, draw_trial, make_estimator, run_policy
 from phyloc.control.policies import POLICIES, PolicySpec
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict, grouped_bars
-from phyloc.parallel import run_tasks
+from phyloc.evaluation.experiment import Experiment, experiment_from_dict
+from phyloc.reporting import grouped_bars, new_figure, save_figure
 
 #: Squared errors of a diverged estimator count as this [m²] in the log-MSE means.
 DIVERGED_M2 = 1e12
 LATE_STEPS = 10
-SUMMARY_HEADERS = [
-    "policy",
-    "track loss %",
-    "95 % CI",
-    "loss % per threshold",
-    "log10 MSE (k=K)",
-    "decision [ms]",
-]
 
 
 @dataclass(frozen=True)
@@ -119,12 +111,6 @@ class ControlExperimentSpec:
         v.integer("experiment.task_trials", self.task_trials, minimum=1)
         self.plan()  # every policy table is checked before any work
 
-    @classmethod
-    def from_dict(cls, d: dict, *, fast: bool = False) -> ControlExperimentSpec:
-        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        d = {k: tuple(x) if isinstance(x, list) else x for k, x in d.items()}
-        return experiment_from_dict(cls, d, fast=fast)
-
     def plan(self) -> dict:
         """``{label: PolicySpec}``."""
         out = {}
@@ -147,7 +133,7 @@ class ControlExperimentSpec:
         return out
 
 
-def _estimator(recipe: Recipe):
+def _estimator(recipe):
     loc = dict(recipe.section("localization"))
     name = loc.pop("method", "spbp")
     return name, loc
@@ -180,61 +166,6 @@ def _task(payload, _seed_seq):
             if keep:
                 ex["by"][label] = {"mobile": r["mobile"], "estimates": r["estimates"]}
     return out, ex
-
-
-def prepare(recipe: Recipe, *, fast: bool = False):
-    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
-    full one) and return what it runs; no work is done (``phyloc evaluate`` and
-    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
-    exp = ControlExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
-    scenario = ControlScenario.from_dict(dict(recipe.section("network")))
-    est_name, est_opts = _estimator(recipe)
-    make_estimator(est_name, est_opts)  # checked before any work
-    plan = exp.plan()
-    return exp, scenario, est_name, est_opts, plan
-
-
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "control"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    exp, scenario, est_name, est_opts, plan = prepare(recipe, fast=fast)
-    blocks = [
-        list(range(s, min(s + exp.task_trials, exp.trials)))
-        for s in range(0, exp.trials, exp.task_trials)
-    ]
-    example = min(exp.example_trial, exp.trials - 1)
-    payloads = [(scenario, plan, est_name, est_opts, recipe.seed, b, example) for b in blocks]
-    results = run_tasks(
-        _task,
-        payloads,
-        recipe.seed,
-        workers=workers,
-        scheduler=scheduler,
-        desc="control trials",
-        progress=progress,
-    )
-    figures, series = _aggregate(results, exp, plan, scenario)
-    meta = {
-        "recipe": recipe.name,
-        "kind": recipe.kind,
-        "seed": recipe.seed,
-        "fast": fast,
-        "trials": exp.trials,
-        "policies": list(plan),
-        "policy_specs": {
-            k: {"policy": p.policy, "horizon": p.horizon, "search": p.search, "beam": p.beam}
-            for k, p in plan.items()
-        },
-        "estimator": est_name,
-        "steps": scenario.steps,
-        "agents": scenario.agents,
-        "mobile_anchors": scenario.mobile_anchors,
-        "static_anchors": scenario.static_anchors,
-        "controls": int(scenario.controls.shape[0]),
-        "track_loss_m": exp.track_loss_m,
-        "thresholds_m": list(exp.thresholds_m),
-        "example_trial": example,
-    }
-    return {"figures": figures, "series": series, "meta": meta}
 
 
 def wilson(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -341,13 +272,9 @@ def summary_lines(results: dict):
 
 def plot(results: dict, path) -> None:
     """FIM Fig. 5 (mean log₁₀ MSE per step), Fig. 4 (example trial in 3-D), track loss."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     f, ser, meta = results["figures"], results["series"], results["meta"]
     pols = meta["policies"]
-    fig = Figure(figsize=(16.0, 5.0), layout="constrained")
-    FigureCanvasAgg(fig)
+    fig, _ = new_figure(0, 0, size=(16.0, 5.0))  # panels added one by one (one in 3-D)
     color = {p: f"C{i}" for i, p in enumerate(pols)}
     ax = fig.add_subplot(1, 3, 1)
     for p in pols:
@@ -390,4 +317,98 @@ def plot(results: dict, path) -> None:
     ax.set_ylabel("tracks lost [%]")
     ax.set_title("track loss (final position error)")
     fig.suptitle(f"Mobile-anchor control — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}")
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path)
+
+
+class ControlExperiment(Experiment):
+    """``kind = "control"``: one task per block of trials; every policy on the same draws."""
+
+    kind = "control"
+    title = "mobile anchors steered by Fisher information (anchor control)"
+    unit = "trial block"
+    spec = ControlExperimentSpec
+    task = staticmethod(_task)
+    progress_label = "control trials"
+    headers = (
+        "policy",
+        "track loss %",
+        "95 % CI",
+        "loss % per threshold",
+        "log10 MSE (k=K)",
+        "decision [ms]",
+    )
+
+    def experiment_spec(self, recipe, *, fast=False):
+        table = {
+            k: tuple(x) if isinstance(x, list) else x
+            for k, x in recipe.section("experiment").items()
+        }
+        return experiment_from_dict(ControlExperimentSpec, table, fast=fast)
+
+    def prepare(self, recipe, *, fast=False):
+        exp = self.experiment_spec(recipe, fast=fast)
+        scenario = ControlScenario.from_dict(dict(recipe.section("network")))
+        est_name, est_opts = _estimator(recipe)
+        make_estimator(est_name, est_opts)  # checked before any work
+        return SimpleNamespace(
+            exp=exp,
+            scenario=scenario,
+            est_name=est_name,
+            est_opts=est_opts,
+            policies=exp.plan(),
+            example=min(exp.example_trial, exp.trials - 1),
+            seed=recipe.seed,
+        )
+
+    def tasks(self, plan):
+        exp = plan.exp
+        blocks = [
+            list(range(s, min(s + exp.task_trials, exp.trials)))
+            for s in range(0, exp.trials, exp.task_trials)
+        ]
+        return [
+            (
+                b[0],
+                (
+                    plan.scenario,
+                    plan.policies,
+                    plan.est_name,
+                    plan.est_opts,
+                    plan.seed,
+                    b,
+                    plan.example,
+                ),
+            )
+            for b in blocks
+        ]
+
+    def aggregate(self, plan, keys, results, ctx):
+        return _aggregate(results, plan.exp, plan.policies, plan.scenario)
+
+    def meta(self, plan, ctx):
+        exp, scenario, est_name, example = plan.exp, plan.scenario, plan.est_name, plan.example
+        policies = plan.policies
+        return {
+            "trials": exp.trials,
+            "policies": list(policies),
+            "policy_specs": {
+                k: {"policy": p.policy, "horizon": p.horizon, "search": p.search, "beam": p.beam}
+                for k, p in policies.items()
+            },
+            "estimator": est_name,
+            "steps": scenario.steps,
+            "agents": scenario.agents,
+            "mobile_anchors": scenario.mobile_anchors,
+            "static_anchors": scenario.static_anchors,
+            "controls": int(scenario.controls.shape[0]),
+            "track_loss_m": exp.track_loss_m,
+            "thresholds_m": list(exp.thresholds_m),
+            "example_trial": example,
+        }
+
+    summary_rows = staticmethod(summary_rows)
+    summary_lines = staticmethod(summary_lines)
+    plot = staticmethod(plot)
+
+
+CONTROL = ControlExperiment()

@@ -45,23 +45,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
 from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.channels import ChannelSpec
-from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict, grouped_bars
-from phyloc.evaluation.localization_experiment import LocalizationSpec, _localize
+from phyloc.evaluation.experiment import Experiment
+from phyloc.evaluation.front_end import localize_realization
 from phyloc.evaluation.metrics import rigid_align
-from phyloc.evaluation.ranging_experiment import RangingSpec
+from phyloc.evaluation.sections import LocalizationSpec, RangingSpec
 from phyloc.localization import METHODS as REGISTRY
 from phyloc.localization import DirectOptions
 from phyloc.network import NetworkSpec
-from phyloc.parallel import run_tasks
+from phyloc.reporting import grouped_bars, new_figure, save_figure
 
 PAPER_METHODS = ("dipnet", "dpe_sampled", "sage_parametric", "sage_sampled")
 """The four methods of DiPNet Figs. 6–7."""
@@ -157,11 +157,6 @@ class DirectTrackingExperimentSpec:
         v.integer("experiment.max_snapshots", self.max_snapshots, minimum=0)
         v.positive("experiment.particle_scale", self.particle_scale)
 
-    @classmethod
-    def from_dict(cls, d: dict, *, fast: bool = False) -> DirectTrackingExperimentSpec:
-        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        return experiment_from_dict(cls, d, fast=fast)
-
     def networks(self, base: dict) -> dict:
         """``{run: NetworkSpec}``: ``[network]`` updated by each run (``max_snapshots`` applied)."""
         out = {}
@@ -203,7 +198,7 @@ def _task(payload, seed_seq):
     need (errors per snapshot, realization-0 tracks and particles)."""
     system, net_spec, chan_spec, rspec, lspec, plan, keep, first = payload
     real = simulate_realization(system, net_spec, chan_spec, np.random.default_rng(seed_seq))
-    out = _localize(real, system, rspec, lspec, plan, ("truth_free",), seed_seq, (keep,))
+    out = localize_realization(real, system, rspec, lspec, plan, ("truth_free",), seed_seq, (keep,))
     truth = real.network.positions
     vel = real.network.velocities
     speed = np.linalg.norm(vel, axis=2).max(axis=1) if vel is not None else np.zeros(truth.shape[0])
@@ -266,62 +261,6 @@ def _aligned_particles(parts, est_t, truth_t, is_anchor):
     return out
 
 
-def prepare(recipe: Recipe, *, fast: bool = False):
-    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
-    full one) and return what it runs; no work is done (``phyloc evaluate`` and
-    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
-    exp = DirectTrackingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
-    rspec = recipe.section("ranging", RangingSpec)
-    lspec = recipe.section("localization", LocalizationSpec)
-    chan = recipe.section("channel", ChannelSpec)
-    nets = exp.networks(dict(recipe.section("network")))
-    return exp, rspec, lspec, chan, nets, exp.plan(lspec)
-
-
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "direct_tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    system = recipe.system
-    exp, rspec, lspec, chan, nets, plan = prepare(recipe, fast=fast)
-    payloads, keys = [], []
-    for name, net in nets.items():
-        keep = min(exp.particles_snapshot, net.motion.n_snapshots - 1)
-        for r in range(exp.realizations):
-            payloads.append((system, net, chan, rspec, lspec, plan, keep, r == 0))
-            keys.append((name, r))
-    results = run_tasks(
-        _task,
-        payloads,
-        recipe.seed,
-        workers=workers,
-        scheduler=scheduler,
-        desc="direct tracking",
-        progress=progress,
-    )
-    figures, series = _aggregate(keys, results, exp, list(nets), list(plan))
-    meta = {
-        "recipe": recipe.name,
-        "kind": recipe.kind,
-        "seed": recipe.seed,
-        "fast": fast,
-        "runs": list(nets),
-        "methods": list(plan),
-        "labels": {label: REGISTRY[name].label for label, (name, _) in plan.items()},
-        "n_particles": {
-            label: opts.dpf.n_particles
-            for label, (_, opts) in plan.items()
-            if isinstance(opts, DirectOptions)
-        },
-        "n_snapshots": {name: net.motion.n_snapshots for name, net in nets.items()},
-        "particles_snapshot": {
-            name: min(exp.particles_snapshot, net.motion.n_snapshots - 1)
-            for name, net in nets.items()
-        },
-        "realizations": exp.realizations,
-        "fast_speed_m_s": exp.fast_speed_m_s,
-    }
-    return {"figures": figures, "series": series, "meta": meta}
-
-
 def _rmse(x):
     return float(math.sqrt(np.mean(np.square(x)))) if np.size(x) else float("nan")
 
@@ -372,18 +311,6 @@ def _aggregate(keys, results, exp, runs, labels):
     return figures, series
 
 
-SUMMARY_HEADERS = [
-    "run",
-    "method",
-    "median [m]",
-    "p90 [m]",
-    "> 2 m [%]",
-    "RMSE slow [m]",
-    "RMSE fast [m]",
-    "ms / agent-snapshot",
-]
-
-
 def summary_rows(results: dict):
     """Per run and method: error median, 90th percentile, outliers, RMSE, runtime."""
     f, meta = results["figures"], results["meta"]
@@ -423,14 +350,9 @@ def summary_lines(results: dict):
 
 def plot(results: dict, path) -> None:
     """DiPNet Fig. 7 (RMSE per snapshot, error CDFs) and Fig. 6 (trajectories, particles)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     f, ser, meta = results["figures"], results["series"], results["meta"]
     runs, methods = meta["runs"], meta["methods"]
-    fig = Figure(figsize=(4.8 * (len(runs) + 1), 12.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(3, len(runs) + 1, squeeze=False)
+    fig, axes = new_figure(3, len(runs) + 1, size=(4.8 * (len(runs) + 1), 12.0), squeeze=False)
     color = {m: f"C{i}" for i, m in enumerate(methods)}
     for j, r in enumerate(runs):
         ax = axes[0, j]
@@ -494,7 +416,7 @@ def plot(results: dict, path) -> None:
     fig.suptitle(
         f"Direct localization over time — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
     )
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path)
 
 
 def _track_panel(ax, ser, run_name, m, color):
@@ -514,3 +436,77 @@ def _track_panel(ax, ser, run_name, m, color):
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.legend(fontsize=7)
+
+
+class DirectTrackingExperiment(Experiment):
+    """``kind = "direct_tracking"``: one task per (run, realization), every snapshot of a moving
+    network localized by every method."""
+
+    kind = "direct_tracking"
+    title = "direct localization over the snapshots of moving networks (DiPNet Figs. 6–7)"
+    unit = "realization"
+    spec = DirectTrackingExperimentSpec
+    task = staticmethod(_task)
+    headers = (
+        "run",
+        "method",
+        "median [m]",
+        "p90 [m]",
+        "> 2 m [%]",
+        "RMSE slow [m]",
+        "RMSE fast [m]",
+        "ms / agent-snapshot",
+    )
+
+    def prepare(self, recipe, *, fast=False):
+        exp = self.experiment_spec(recipe, fast=fast)
+        lspec = recipe.section("localization", LocalizationSpec)
+        return SimpleNamespace(
+            system=recipe.system,
+            exp=exp,
+            rspec=recipe.section("ranging", RangingSpec),
+            lspec=lspec,
+            chan=recipe.section("channel", ChannelSpec),
+            nets=exp.networks(dict(recipe.section("network"))),
+            plan=exp.plan(lspec),
+        )
+
+    def tasks(self, plan):
+        work = []
+        for name, net in plan.nets.items():
+            keep = min(plan.exp.particles_snapshot, net.motion.n_snapshots - 1)
+            for r in range(plan.exp.realizations):
+                payload = (plan.system, net, plan.chan, plan.rspec, plan.lspec, plan.plan, keep)
+                work.append(((name, r), (*payload, r == 0)))
+        return work
+
+    def aggregate(self, plan, keys, results, ctx):
+        return _aggregate(keys, results, plan.exp, list(plan.nets), list(plan.plan))
+
+    def meta(self, plan, ctx):
+        exp, nets = plan.exp, plan.nets
+        plan = plan.plan
+        return {
+            "runs": list(nets),
+            "methods": list(plan),
+            "labels": {label: REGISTRY[name].label for label, (name, _) in plan.items()},
+            "n_particles": {
+                label: opts.dpf.n_particles
+                for label, (_, opts) in plan.items()
+                if isinstance(opts, DirectOptions)
+            },
+            "n_snapshots": {name: net.motion.n_snapshots for name, net in nets.items()},
+            "particles_snapshot": {
+                name: min(exp.particles_snapshot, net.motion.n_snapshots - 1)
+                for name, net in nets.items()
+            },
+            "realizations": exp.realizations,
+            "fast_speed_m_s": exp.fast_speed_m_s,
+        }
+
+    summary_rows = staticmethod(summary_rows)
+    summary_lines = staticmethod(summary_lines)
+    plot = staticmethod(plot)
+
+
+DIRECT_TRACKING = DirectTrackingExperiment()

@@ -13,7 +13,7 @@ prediction of the previous belief with the methods' mobility model (the DPF of
 every agent. Errors are then pooled over snapshots; the RMSE per snapshot is a series. Methods::
 
     ``dipnet``            DiPNet with phyloc's safeguards: the marginal equivalent likelihood
-                          (:class:`~phyloc.localization.likelihoods.MarginalDirectLikelihood`,
+                          (:class:`~phyloc.localization.direct.likelihoods.MarginalDirectLikelihood`,
                           DiPNet eq. (22) marginalized over the neighbour's projected uncertainty
                           instead of the ENV of DiPNet eq. (26)), adaptive tempering,
                           resample-move, covariance floor (:class:`~phyloc.localization.DPFOptions`)
@@ -76,7 +76,6 @@ Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -84,139 +83,23 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
-from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict, scenario_specs
-from phyloc.evaluation.metrics import framework_distance_errors, rigid_align, shape_difference
-from phyloc.evaluation.ranging_experiment import RangingSpec
-from phyloc.localization import METHODS as REGISTRY
-from phyloc.localization import (
-    DirectOptions,
-    LinkMeasurements,
-    LinkRanges,
-    Prior,
-    coarse_positions,
-    gauge_log_prior,
-    gauge_priors,
-    gaussian_log_prior,
-    gaussian_priors,
-    informed_centers,
+from phyloc.evaluation.experiment import Experiment, RunContext
+from phyloc.evaluation.front_end import localize_realization
+from phyloc.evaluation.sections import (
+    LocalizationSpec,
+    RangingSpec,
+    network_specs,
+    scenario_specs,
 )
-from phyloc.localization.initialization import PAIR_COMBINE
-from phyloc.network import NetworkSpec
-from phyloc.network.rigidity import determined_pairs
-from phyloc.parallel import run_tasks
-from phyloc.phy.correlation import correlation_tables
-from phyloc.ranging import estimate
-from phyloc.ranging.nlos import check_min_concentration, energy_concentration
+from phyloc.localization import METHODS as REGISTRY
+from phyloc.reporting import new_figure, save_figure
 
 METHODS = REGISTRY.family("direct")
 """The methods this experiment can run: every registered method of the direct family."""
 INITS = {"truth_free": "", "informed": "_informed", "gauge": "_gauge"}
 CDF_GRID_M = np.linspace(0.0, 30.0, 301)
-
-
-PRIOR_KEYS = (
-    "prior_std_m",
-    "informed_std_m",
-    "gauge_extent_m",
-    "init_pair_range",
-    "init_robust_scale_m",
-    "init_restarts",
-    "init_one_sided",
-    "los_min_concentration",
-)
-"""``[localization]`` keys of the experiment's priors; every other key is a method option."""
-
-
-@dataclass(frozen=True)
-class LocalizationSpec:
-    """``[localization]``: the methods' options and the experiment's priors.
-
-    ``prior_std_m`` std of the truth-free Gaussian priors around the coarse solution [m];
-    ``informed_std_m`` σ0 of the informed start [m]; ``gauge_extent_m`` half-width of the
-    uniform gauge priors [m]; ``init_pair_range`` (``"min"``, or ``"mean"``) how the
-    truth-free start combines the two directions' correlation ranges of a pair and
-    ``init_robust_scale_m`` (default ``[5.0, 2.0, 1.0]``; a number for one scale; 0: plain
-    SMACOF) the Cauchy scales of its robust reweighting, the configuration with the lowest
-    cost at the smallest scale winning, ``init_restarts`` (default 10) the random SMACOF
-    starts it adds to the MDS start, the lowest robust cost winning, and ``init_one_sided``
-    (default true) whether the reweighting spares ranges shorter than the fitted distance
-    (NLOS biases are positive: a short range is noise, a long one may be biased)
-    (:func:`~phyloc.localization.initialization.coarse_positions`).
-    ``los_min_concentration`` (default 0.6; 0: off) is the NLOS identification: a link whose
-    correlation has an energy concentration below it
-    (:func:`~phyloc.ranging.nlos.energy_concentration`, 1 for one path) is left out of the
-    start and of every method's likelihood (``LinkMeasurements.usable``). Every other
-    key is an option of the direct family (:class:`~phyloc.localization.DirectOptions`: the
-    :class:`~phyloc.localization.DPFOptions` fields, ``outlier_nats`` …), kept as written in
-    ``options``; a subtable
-    ``[localization.<method>]`` (``method_options``) holds the options of one method. A method
-    whose options are :class:`~phyloc.localization.DirectOptions` gets ``options`` updated by
-    its subtable, any other (a user's method) its subtable only (:meth:`options_for`).
-    """
-
-    options: dict = field(default_factory=dict)
-    prior_std_m: float = 10.0
-    informed_std_m: float = 10.0
-    gauge_extent_m: float = 150.0
-    method_options: dict = field(default_factory=dict)
-    init_pair_range: str = "min"
-    init_robust_scale_m: tuple = (5.0, 2.0, 1.0)
-    init_restarts: int = 10
-    init_one_sided: bool = True
-    los_min_concentration: float = 0.6
-
-    def __post_init__(self):
-        v.positive("localization.prior_std_m", self.prior_std_m)
-        v.choice("localization.init_pair_range", self.init_pair_range, PAIR_COMBINE)
-        raw = self.init_robust_scale_m
-        scales = tuple(
-            v.positive("localization.init_robust_scale_m", c, allow_zero=True)
-            for c in ((raw,) if np.ndim(raw) == 0 else raw)
-        )
-        if not scales or (0.0 in scales and len(scales) > 1):
-            raise ValidationError(
-                "localization.init_robust_scale_m", raw, "scales > 0 [m], or 0 (plain SMACOF)"
-            )
-        object.__setattr__(self, "init_robust_scale_m", scales)
-        v.integer("localization.init_restarts", self.init_restarts, minimum=0)
-        check_min_concentration(self.los_min_concentration, "localization.los_min_concentration")
-        v.positive("localization.informed_std_m", self.informed_std_m)
-        v.positive("localization.gauge_extent_m", self.gauge_extent_m)
-        object.__setattr__(self, "options", dict(self.options))
-        object.__setattr__(self, "method_options", dict(self.method_options))
-        DirectOptions.from_dict(self.options, "localization")  # names a bad key or value
-        for name in self.method_options:
-            if name in REGISTRY:
-                self.options_for(name)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> LocalizationSpec:
-        """From ``[localization]``: the prior keys, the direct family's option keys and the
-        per-method subtables."""
-        d = dict(d)
-        own = {k: d.pop(k) for k in PRIOR_KEYS if k in d}
-        scale = own.get("init_robust_scale_m")
-        if isinstance(scale, int | float) and not isinstance(scale, bool):
-            own["init_robust_scale_m"] = [scale]  # one scale, written as a number
-        v.check_types(cls, own, "localization")
-        sub = {k: d.pop(k) for k in list(d) if isinstance(d[k], dict)}
-        return cls(options=d, method_options=sub, **own)
-
-    def options_for(self, name: str):
-        """The options of method ``name`` (``METHODS[name].make_options(...)``)."""
-        method = REGISTRY[name]
-        own = self.method_options.get(name, {})
-        if method.options is DirectOptions:
-            return method.make_options({**self.options, **own}, "localization")
-        return method.make_options(own, f"localization.{name}")
-
-    @property
-    def dpf(self):
-        """The filter options written in the recipe (``n_particles`` of the priors, meta)."""
-        return DirectOptions.from_dict(self.options, "localization").dpf
 
 
 @dataclass(frozen=True)
@@ -279,74 +162,12 @@ class LocalizationExperimentSpec:
         object.__setattr__(self, "inits", tuple(self.inits))
         object.__setattr__(self, "cdf_agents", tuple(int(a) for a in self.cdf_agents))
 
-    @classmethod
-    def from_dict(cls, d: dict, *, fast: bool = False) -> LocalizationExperimentSpec:
-        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        return experiment_from_dict(cls, d, fast=fast)
-
-
-UNDETECTED_WEIGHT = 1e-3
-"""SMACOF weight of a pair known only from links below the detection threshold, when the
-detected links leave the truth-free start disconnected."""
-
-
-def _priors(init, net, links, corr, lspec, Q, rng):
-    """Prior particles (``Q`` per agent) and log density of one initialization (agents only),
-    and the prior centres ``[n_agents, dim]`` (None for the gauge priors)."""
-    agents = net.agent_index
-    pos = net.positions[0]
-    if init == "gauge":
-        X = gauge_priors(agents.size, net.dim, Q, lspec.gauge_extent_m, rng)
-        ext = lspec.gauge_extent_m
-        return Prior(X, lambda x: gauge_log_prior(x, ext), "uninformative gauge priors"), None
-    if init == "informed":
-        centers = informed_centers(pos[agents], lspec.informed_std_m, rng=rng)
-        std, label = lspec.informed_std_m, "informed start"
-    else:
-        anchors = pos[net.is_anchor] if net.n_anchors else None
-        robust = {
-            "combine": lspec.init_pair_range,
-            "robust_scale_m": tuple(c for c in lspec.init_robust_scale_m if c > 0) or None,
-            "n_restarts": lspec.init_restarts,
-            "one_sided": lspec.init_one_sided,
-            "rng": rng,
-        }
-        try:
-            sol = coarse_positions(
-                links,
-                corr.range_m,
-                net.n_nodes,
-                net.dim,
-                valid=corr.valid,
-                is_anchor=net.is_anchor,
-                anchor_positions=anchors,
-                **robust,
-            )
-        except ValidationError:
-            # some node has no detected range: undetected links join in with their strongest
-            # peak at a weight of UNDETECTED_WEIGHT, placing the disconnected nodes (a guess:
-            # their pairs are unobservable) without bending the detected part of the network
-            sol = coarse_positions(
-                links,
-                corr.range_m,
-                net.n_nodes,
-                net.dim,
-                valid=corr.valid,
-                invalid_weight=UNDETECTED_WEIGHT,
-                is_anchor=net.is_anchor,
-                anchor_positions=anchors,
-                **robust,
-            )
-        centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
-    X = gaussian_priors(centers, std, Q, rng)
-    return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label), centers
-
 
 def _task(payload, seed_seq):
     """Simulate one realization (stream: the task's seed sequence itself) and localize."""
     system, net_spec, chan_spec, rspec, lspec, methods, inits = payload
     real = simulate_realization(system, net_spec, chan_spec, np.random.default_rng(seed_seq))
-    return _localize(real, system, rspec, lspec, methods, inits, seed_seq)
+    return localize_realization(real, system, rspec, lspec, methods, inits, seed_seq)
 
 
 def _dataset_task(payload, seed_seq):
@@ -357,245 +178,11 @@ def _dataset_task(payload, seed_seq):
     with open_dataset(path) as ds:
         real = ds.realization(r)
         system = ds.system
-    return _localize(real, system, rspec, lspec, methods, inits, seed_seq)
-
-
-def _usable(tables, rspec, lspec):
-    """Per snapshot, the links the NLOS identification keeps (``los_min_concentration``,
-    :func:`~phyloc.ranging.nlos.energy_concentration` over the ranging window at the
-    correlation peak's detection threshold); None when it is off."""
-    if lspec.los_min_concentration <= 0:
-        return None
-    corr = rspec.method_options("corr")
-    kw = {"window_m": rspec.window_m}
-    if "noise_factor" in corr:
-        kw["noise_factor"] = corr["noise_factor"]
-    return tuple(energy_concentration(t, **kw) >= lspec.los_min_concentration for t in tables)
-
-
-def _measurements(real, tables, rspec, methods, usable=None):
-    """The measurements of every snapshot of a realization, for every method's ``inputs``.
-
-    Correlation tables, and the ranges of ``"corr"`` (the truth-free initialization and the
-    link-bias figures read them) and of every estimator a method's ``inputs`` names
-    (``"ranges:<estimator>"``; the oracle ``"sage_los"`` gets the true LOS flags here, in
-    the evaluation); ``usable`` the links the NLOS identification kept (:func:`_usable`).
-    Returns the measurements and, per estimator, its estimates per snapshot."""
-    net = real.network
-    ways = real.ways
-    names = {"corr"}
-    for m in methods:
-        inputs = REGISTRY[m].inputs
-        if inputs.startswith("ranges:"):
-            names.add(inputs.split(":", 1)[1])
-    ranges = {}
-    for name in sorted(names):
-        per_t = []
-        for table, draw in zip(tables, real.channels, strict=True):
-            e = estimate(name, table, los=draw.los, **rspec.method_options(name))
-            if ways != 1:  # two-way tables measure the round trip
-                e = dataclasses.replace(
-                    e, range_m=e.range_m / ways, variance_m2=e.variance_m2 / ways**2
-                )
-            per_t.append(e)
-        ranges[name] = per_t
-    anchors = net.anchor_index
-    meas = LinkMeasurements(
-        n_nodes=net.n_nodes,
-        dim=net.dim,
-        anchor_nodes=anchors,
-        anchor_positions=net.positions[:, anchors],
-        links=tuple(real.links),
-        tables=tuple(tables),
-        ranges={
-            k: LinkRanges(
-                tuple(e.range_m for e in es),
-                tuple(e.variance_m2 for e in es),
-                tuple(e.valid for e in es),
-            )
-            for k, es in ranges.items()
-        },
-        ways=ways,
-        window_m=rspec.window_m,
-        usable=usable,
-    )
-    return meas, ranges
-
-
-def _method_plan(methods, lspec):
-    """``[(label, registry name, options)]``: ``methods`` is a sequence of registered names
-    (options from ``[localization]``) or a mapping ``label -> (name, options)``."""
-    if isinstance(methods, dict):
-        return [(label, name, opts) for label, (name, opts) in methods.items()]
-    return [(m, m, lspec.options_for(m)) for m in methods]
-
-
-def _localize(real, system, rspec, lspec, methods, inits, seed_seq, keep_particles=()):
-    """Ranging and every localization method on every snapshot of a realization.
-
-    ``methods``: registered names, or ``{label: (name, options)}`` (:func:`_method_plan`).
-    The randomness of the priors and of each method comes from children of ``seed_seq``
-    (spawned after the signals were drawn from the sequence itself). The prior of an
-    initialization is drawn from that initialization's stream for each particle count a method
-    asks for, so methods with equal ``n_particles`` start from the same particles. Snapshot 0
-    starts from the prior; later snapshots predict with the methods' mobility model
-    (``process_std_m``, DiPNet §II-C)."""
-    plan = _method_plan(methods, lspec)
-    streams = seed_seq.spawn(2 + len(inits) * (1 + len(plan)))
-    net = real.network
-    tables = [
-        correlation_tables(rec, real.symbols, system, beta=rspec.beta, tx_index=lk[:, 1])
-        for rec, lk in zip(real.received, real.links, strict=True)
-    ]
-    usable = _usable(tables, rspec, lspec)
-    meas, ests = _measurements(real, tables, rspec, [name for _, name, _ in plan], usable)
-    corr0 = ests["corr"][0]
-    if usable is not None:  # the start ranges only the links the identification kept
-        corr0 = dataclasses.replace(corr0, valid=corr0.valid & usable[0])
-    out = {
-        # distances of the realization's own links (recorded data need not have every link
-        # the network's range allows; for simulated data they are the same links)
-        "link_err_corr": np.concatenate(
-            [
-                e.range_m
-                - np.linalg.norm(net.positions[t][lk[:, 0]] - net.positions[t][lk[:, 1]], axis=-1)
-                for t, (e, lk) in enumerate(zip(ests["corr"], real.links, strict=True))
-            ]
-        ),
-        "link_valid_corr": np.concatenate([e.valid for e in ests["corr"]]),
-        "los": np.concatenate([np.asarray(d.los, bool) for d in real.channels]),
-        "observable": np.concatenate(
-            [
-                observable_pairs(
-                    net, t, lk, e.valid & meas.usable_links(t), np.random.default_rng(streams[0])
-                )
-                for t, (e, lk) in enumerate(zip(ests["corr"], real.links, strict=True))
-            ]
-        ),
-        "dim": net.dim,
-    }
-    s = 2
-    for init in inits:
-        prior_seed = streams[s]
-        s += 1
-        priors = {}
-        for label, name, opts in plan:
-            rng_m = np.random.default_rng(streams[s])
-            s += 1
-            Q = opts.dpf.n_particles if isinstance(opts, DirectOptions) else lspec.dpf.n_particles
-            if Q not in priors:
-                rng_p = np.random.default_rng(prior_seed)
-                priors[Q], centers = _priors(init, net, real.links[0], corr0, lspec, Q, rng_p)
-                if f"start|{init}|err" not in out:  # the start itself, as a method would be
-                    out[f"start|{init}|err"] = (
-                        np.full(0, np.nan)
-                        if centers is None
-                        else framework_distance_errors(
-                            _nodes(centers, meas, net.agent_index), net.positions[0], net.is_anchor
-                        )
-                    )
-            if keep_particles and isinstance(opts, DirectOptions):
-                opts = dataclasses.replace(opts, keep_particles=tuple(keep_particles))
-            res = REGISTRY[name].run(meas, priors[Q], rng_m, opts)
-            out.update(_run_outputs(f"{label}|{init}", res, meas, net.positions))
-    return out
-
-
-def observable_pairs(net, t, links, detected, rng) -> np.ndarray:
-    """Which framework distances of snapshot ``t`` its detected ``links`` determine.
-
-    A pair of nodes is *linked* when a link between them (either direction) passes the
-    correlation-peak detection test (``detected``, the ``valid`` flags of the ``"corr"``
-    ranges: measurements only, no truth). A framework distance is *observable* when the linked
-    pairs fix it (generic infinitesimal rigidity, anchors fixed:
-    :func:`~phyloc.network.rigidity.determined_pairs`). Returns a flag per pair of
-    :func:`~phyloc.evaluation.metrics.framework_distance_errors` (same order)."""
-    pos = net.positions[t]
-    _, pairs = framework_distance_errors(pos, pos, net.is_anchor, return_pairs=True)
-    edges = np.asarray(links)[np.asarray(detected, bool)]
-    return determined_pairs(net.n_nodes, edges, pairs, net.dim, rng, fixed=net.is_anchor)
+    return localize_realization(real, system, rspec, lspec, methods, inits, seed_seq)
 
 
 _CHI2_MEDIAN = {1: 0.454936423119573, 2: 2.0 * math.log(2.0), 3: 2.365973884375338}
 """Median of the χ² distribution with 1, 2, 3 degrees of freedom (NEES of a calibrated belief)."""
-
-
-def _nees(estimates, covariances, truth, is_anchor):
-    """NEES ``eᵀP⁻¹e`` per agent of one snapshot, after the rigid alignment of DiPNet eq. (3)
-    (the error of an anchor-free framework is defined up to a rigid motion; the covariance
-    rotates with it). NaN for a singular or missing covariance."""
-    R, _, aligned = rigid_align(estimates, truth, is_anchor=is_anchor, missing="exclude")
-    agents = np.flatnonzero(~np.asarray(is_anchor, bool))
-    out = np.full(agents.size, np.nan)
-    if covariances is None:
-        return out
-    for i, u in enumerate(agents):
-        P = R @ covariances[i] @ R.T
-        e = aligned[u] - truth[u]
-        if not (np.all(np.isfinite(P)) and np.all(np.isfinite(e))):
-            continue
-        try:
-            with np.errstate(all="ignore"):
-                val = float(e @ np.linalg.solve(P, e))
-        except np.linalg.LinAlgError:
-            continue
-        out[i] = val if np.isfinite(val) and val >= 0 else np.nan
-    return out
-
-
-def _run_outputs(key, res, meas, truth):
-    """Metrics of one run (``res``, a Result) against the truth, keyed ``key|<what>``.
-
-    ``truth [T, n_nodes, dim]`` enters only here. Errors are pooled over snapshots (``err``),
-    with the RMSE per snapshot (``rmse_t``) and the estimates (``estimates``, for trajectory
-    figures). The per-iteration series read snapshot 0 of the direct family's diagnostics
-    (``mean_history``, ``cov_trace_history``, ``ess_history``); a method without them (a
-    user's method) gives its final estimate as the only "iteration" and NaN for the ESS."""
-    dim, is_anchor = meas.dim, meas.is_anchor
-    agents = meas.agent_nodes
-    diag = res.diagnostics
-    T = res.estimates.shape[0]
-    errs = [
-        framework_distance_errors(_nodes(res.estimates[t], meas, agents, t), truth[t], is_anchor)
-        for t in range(T)
-    ]
-    history = diag["mean_history"][0] if "mean_history" in diag else res.estimates[:1]
-    est0 = _nodes(res.estimates[0], meas, agents)
-    out = {
-        key + "|err": np.concatenate(errs),
-        key + "|rmse_t": np.array([math.sqrt(np.mean(e**2)) for e in errs]),
-        key + "|estimates": np.asarray(res.estimates),
-        key + "|shape": shape_difference(est0, truth[0], is_anchor),
-        key + "|actual_err": np.array(
-            [shape_difference(_nodes(mk, meas, agents), truth[0], is_anchor) for mk in history]
-        )
-        / math.sqrt(dim),
-        key + "|nees": _nees(
-            est0,
-            None if res.covariances is None else np.asarray(res.covariances[0]),
-            truth[0],
-            is_anchor,
-        ),
-        key + "|sec_per_agent_it": res.timing.per_agent_iteration_s,
-        key + "|agent_snapshot_s": float(np.mean(res.timing.agent_s)),
-        key + "|particles_at": {
-            t: (np.asarray(X), np.asarray(lw))
-            for t, (X, lw) in diag.get("particles_at", {}).items()
-        },
-    }
-    if "ess_history" in diag:
-        ess = diag["ess_history"][0]
-        out[key + "|ess"], out[key + "|ess_min"] = ess.mean(axis=1), float(ess.min())
-    else:
-        out[key + "|ess"], out[key + "|ess_min"] = np.full(1, np.nan), float("nan")
-    if "cov_trace_history" in diag:
-        trace = diag["cov_trace_history"][0].mean(axis=1)
-    elif res.covariances is not None:
-        trace = np.trace(res.covariances[0], axis1=1, axis2=2).mean(keepdims=True)
-    else:
-        trace = np.full(1, np.nan)
-    out[key + "|published_std"] = np.sqrt(trace / dim)
-    return out
 
 
 def _reads_tables(name: str) -> bool:
@@ -606,29 +193,23 @@ def _reads_tables(name: str) -> bool:
     return method is not None and method.inputs == "tables"
 
 
-def _nodes(agent_estimates, meas, agents, t=0):
-    """``[n_nodes, dim]`` positions at snapshot ``t``: the estimates in agents' rows, anchors
-    where known."""
-    full = np.zeros((meas.n_nodes, meas.dim))
-    full[meas.anchor_nodes] = meas.anchor_positions[t]
-    full[agents] = agent_estimates
-    return full
+@dataclass(frozen=True)
+class LocalizationPlan:
+    """What a localization run runs: the system, ``[experiment]``, ``[ranging]``, the
+    ``[localization]`` of every scenario token, the networks per size and the channels per
+    token."""
+
+    system: object
+    exp: LocalizationExperimentSpec
+    rspec: RangingSpec
+    lspec: LocalizationSpec
+    lspecs: dict
+    nets: dict
+    specs: dict
+    dataset: str | None = None
 
 
-def prepare(recipe: Recipe, *, fast: bool = False):
-    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
-    full one) and return what it runs; no work is done (``phyloc evaluate`` and
-    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
-    exp = LocalizationExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
-    rspec = recipe.section("ranging", RangingSpec)
-    lspec = recipe.section("localization", LocalizationSpec)
-    net_raw = dict(recipe.section("network"))
-    chan = recipe.section("channel", ChannelSpec)
-    nets = {n: NetworkSpec.from_dict({**net_raw, "n_agents": n}) for n in exp.agents}
-    return exp, rspec, lspec, nets, scenario_specs(chan, exp.scenarios)
-
-
-def scenario_localization_specs(recipe: Recipe, exp, lspec) -> dict:
+def scenario_localization_specs(recipe, exp, lspec) -> dict:
     """``{token: LocalizationSpec}``: ``lspec`` with ``experiment.scenario_localization``
     applied per scenario (errors name the key under ``experiment.scenario_localization``)."""
     raw = recipe.section("localization")
@@ -647,53 +228,124 @@ def scenario_localization_specs(recipe: Recipe, exp, lspec) -> dict:
     return out
 
 
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "localization"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    system = recipe.system
-    exp, rspec, lspec, nets, specs = prepare(recipe, fast=fast)
-    lspecs = scenario_localization_specs(recipe, exp, lspec)
-    payloads, keys = [], []
-    for tok, spec in specs.items():
-        for n in exp.agents:
-            for r in range(exp.realizations):
-                payloads.append((system, nets[n], spec, rspec, lspecs[tok], exp.methods, exp.inits))
-                keys.append((tok, n, r))
-    results = run_tasks(
-        _task,
-        payloads,
-        recipe.seed,
-        workers=workers,
-        scheduler=scheduler,
-        desc="localization",
-        progress=progress,
-    )
-    figures, series = _aggregate(keys, results, exp, list(specs))
-    meta = _meta(recipe, exp, lspec, fast)
-    return {"figures": figures, "series": series, "meta": meta}
+class LocalizationExperiment(Experiment):
+    """``kind = "localization"``: one task per (scenario token, network size, realization),
+    every method and initialization on the same waveforms."""
+
+    kind = "localization"
+    title = "direct versus two-step network localization (DiPNet Fig. 5)"
+    unit = "realization"
+    spec = LocalizationExperimentSpec
+    task = staticmethod(_task)
+
+    def prepare(self, recipe, *, fast=False) -> LocalizationPlan:
+        exp = self.experiment_spec(recipe, fast=fast)
+        rspec = recipe.section("ranging", RangingSpec)
+        lspec = recipe.section("localization", LocalizationSpec)
+        nets = network_specs(recipe.section("network"), exp.agents)
+        specs = scenario_specs(recipe.section("channel", ChannelSpec), exp.scenarios)
+        lspecs = scenario_localization_specs(recipe, exp, lspec)
+        return LocalizationPlan(recipe.system, exp, rspec, lspec, lspecs, nets, specs)
+
+    def tasks(self, plan: LocalizationPlan):
+        exp = plan.exp
+        return [
+            (
+                (tok, n, r),
+                (
+                    plan.system,
+                    plan.nets[n],
+                    spec,
+                    plan.rspec,
+                    plan.lspecs[tok],
+                    exp.methods,
+                    exp.inits,
+                ),
+            )
+            for tok, spec in plan.specs.items()
+            for n in exp.agents
+            for r in range(exp.realizations)
+        ]
+
+    def aggregate(self, plan, keys, results, ctx):
+        return _aggregate(keys, results, plan.exp, list(plan.specs))
+
+    def meta(self, plan, ctx):
+        exp, lspec = plan.exp, plan.lspec
+        return {
+            "agents": list(exp.agents),
+            "realizations": exp.realizations,
+            "scenarios": dict(exp.scenarios),
+            "scenario_localization": {k: dict(o) for k, o in exp.scenario_localization.items()},
+            "methods": list(exp.methods),
+            "inits": {i: i.replace("_", "-") for i in exp.inits},
+            "labels": {
+                "informed": "informed start (truth + N(0, σ0²))",
+                "gauge": "uninformative gauge priors",
+                "truth_free": "truth-free",
+                "sage_los": "oracle: NLOS links rejected by ground truth",
+            },
+            "n_particles": lspec.dpf.n_particles,
+            "n_iterations": lspec.dpf.n_iterations,
+        }
+
+    def summary_rows(self, results):
+        return summary_rows(results)
+
+    def summary_headers(self, results):
+        return summary_headers(results)
+
+    def summary_lines(self, results):
+        return summary_lines(results)
+
+    def plot(self, results, path):
+        plot(results, path)
 
 
-def _meta(recipe, exp, lspec, fast) -> dict:
-    """The ``meta`` object of a localization result (labels of every oracle/informed output)."""
-    return {
-        "recipe": recipe.name,
-        "kind": recipe.kind,
-        "seed": recipe.seed,
-        "fast": fast,
-        "agents": list(exp.agents),
-        "realizations": exp.realizations,
-        "scenarios": dict(exp.scenarios),
-        "scenario_localization": {k: dict(o) for k, o in exp.scenario_localization.items()},
-        "methods": list(exp.methods),
-        "inits": {i: i.replace("_", "-") for i in exp.inits},
-        "labels": {
-            "informed": "informed start (truth + N(0, σ0²))",
-            "gauge": "uninformative gauge priors",
-            "truth_free": "truth-free",
-            "sage_los": "oracle: NLOS links rejected by ground truth",
-        },
-        "n_particles": lspec.dpf.n_particles,
-        "n_iterations": lspec.dpf.n_iterations,
-    }
+class DatasetLocalization(LocalizationExperiment):
+    """``phyloc evaluate DATASET.h5``: the localization experiment on a dataset's stored
+    waveforms (one task per stored realization)."""
+
+    task = staticmethod(_dataset_task)
+
+    def prepare_dataset(self, path, *, fast: bool = False):
+        """The recipe stored in dataset ``path`` and the plan of evaluating it (with ``fast``
+        the first realization only)."""
+        from phyloc.datasets import open as open_dataset
+
+        with open_dataset(path) as ds:
+            recipe = ds.load_recipe()
+            n_real = ds.n_realizations
+            net = ds.realization(0).network
+        exp, rspec, lspec, token = dataset_specs(recipe, net.n_agents, 1 if fast else n_real)
+        plan = LocalizationPlan(
+            None, exp, rspec, lspec, {token: lspec}, {net.n_agents: None}, {token: None}, str(path)
+        )
+        return recipe, plan
+
+    def tasks(self, plan: LocalizationPlan):
+        ((token, n),) = ((t, n) for t in plan.specs for n in plan.nets)
+        exp = plan.exp
+        return [
+            ((token, n, r), (plan.dataset, r, plan.rspec, plan.lspec, exp.methods, exp.inits))
+            for r in range(exp.realizations)
+        ]
+
+    def run_dataset(self, path, *, fast=False, workers=None, scheduler=None, progress=True):
+        """Run the localization methods on the waveforms of a dataset (``phyloc generate``).
+
+        Methods, initializations and filter options come from the dataset's stored recipe
+        (``[experiment]`` methods/inits, ``[ranging]``, ``[localization]``; defaults
+        otherwise); every realization is one task, seeded like the realization itself, so the
+        results equal those of the same recipe evaluated in memory (up to the complex64
+        storage of the samples). With ``fast`` only the first realization is used.
+        """
+        recipe, plan = self.prepare_dataset(path, fast=fast)
+        ctx = RunContext(recipe.seed, fast, workers, scheduler, progress)
+        res = self.execute(plan, ctx)
+        head = {"recipe": recipe.name, "kind": "localization", "seed": recipe.seed, "fast": fast}
+        res["meta"] = {**head, **res["meta"], "dataset": str(path)}
+        return res
 
 
 def _aggregate(keys, results, exp, tokens):
@@ -825,40 +477,6 @@ def check_dataset_recipe(recipe) -> None:
     dataset_specs(plan.recipe, plan.network.n_agents, plan.dataset.realizations)
 
 
-def run_dataset(path, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run the localization methods on the waveforms of a dataset (``phyloc generate``).
-
-    Methods, initializations and filter options come from the dataset's stored recipe
-    (``[experiment]`` methods/inits, ``[ranging]``, ``[localization]``; defaults otherwise);
-    every realization is one task, seeded like the realization itself, so the results equal
-    those of the same recipe evaluated in memory (up to the complex64 storage of the samples).
-    With ``fast`` only the first realization is used.
-    """
-    from phyloc.datasets import open as open_dataset
-
-    with open_dataset(path) as ds:
-        recipe = ds.load_recipe()
-        n_real = ds.n_realizations
-        net = ds.realization(0).network
-    exp, rspec, lspec, token = dataset_specs(recipe, net.n_agents, 1 if fast else n_real)
-    payloads = [
-        (str(path), r, rspec, lspec, exp.methods, exp.inits) for r in range(exp.realizations)
-    ]
-    keys = [(token, net.n_agents, r) for r in range(exp.realizations)]
-    results = run_tasks(
-        _dataset_task,
-        payloads,
-        recipe.seed,
-        workers=workers,
-        scheduler=scheduler,
-        desc="localization",
-        progress=progress,
-    )
-    figures, series = _aggregate(keys, results, exp, [token])
-    meta = {**_meta(recipe, exp, lspec, fast), "kind": "localization", "dataset": str(path)}
-    return {"figures": figures, "series": series, "meta": meta}
-
-
 SUMMARY_HEADERS = ["scenario", "method"]
 
 
@@ -929,16 +547,13 @@ def summary_lines(results: dict):
 
 def plot(results: dict, path) -> None:
     """DiPNet Fig. 5 layout from results only: RMSE vs agents per scenario, CDFs, ESS."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     f, ser, meta = results["figures"], results["series"], results["meta"]
     toks = list(meta["scenarios"])
     tracking = any(k.endswith(".rmse_by_snapshot") for k in ser)
     n_rows = 3 if tracking else 2
-    fig = Figure(figsize=(4.6 * len(toks) + 4.6, 4.0 * n_rows), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(n_rows, len(toks) + 1, squeeze=False)
+    fig, axes = new_figure(
+        n_rows, len(toks) + 1, squeeze=False, size=(4.6 * len(toks) + 4.6, 4.0 * n_rows)
+    )
     agents = meta["agents"]
     for j, tok in enumerate(toks):
         ax = axes[0, j]
@@ -1006,7 +621,7 @@ def plot(results: dict, path) -> None:
     fig.suptitle(
         f"Direct vs two-step localization — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
     )
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path)
 
 
 def _plot_tracks(axes, ser, meta, toks):
@@ -1032,3 +647,7 @@ def _cdf_sizes(ser, meta, tok):
         for n in meta["agents"]
         if any(f"{m}.{tok}.agents_{n}.error_cdf" in ser for m in meta["methods"])
     ]
+
+
+LOCALIZATION = LocalizationExperiment()
+DATASET_LOCALIZATION = DatasetLocalization()

@@ -44,116 +44,25 @@ vector parameter estimation," IEEE Trans. Information Theory 43(2), pp. 624–63
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
 from phyloc.channels import ChannelSpec
-from phyloc.config import Recipe
 from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict, scenario_specs
-from phyloc.network import NetworkSpec
-from phyloc.parallel import run_tasks
-from phyloc.phy import C0, OFDMSystem, PathSet
+from phyloc.evaluation.experiment import Experiment
+from phyloc.evaluation.sections import RangingSpec, network_specs, scenario_specs
+from phyloc.phy import C0, PathSet
 from phyloc.phy.bounds import crb_range, zzb_range
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
 from phyloc.phy.waveform import qpsk_symbols
 from phyloc.ranging import estimate, ranging_variance
-from phyloc.ranging.estimators import ESTIMATORS, ORACLES
-
-METHODS = ("corr", "first_peak", "sage", "sage_los")
-
-
-@dataclass(frozen=True)
-class RangingSpec:
-    """``[ranging]``: estimators and their options.
-
-    ``methods`` from ``corr``, ``first_peak``, ``sage``, ``sage_los`` (oracle: SAGE on LOS links
-    only); ``beta`` the table interpolation factor; ``window_m`` the distance search window;
-    ``variance`` the ranging-variance model (``zzb`` or ``crb``); ``prior_range_m`` the ZZB's
-    a-priori distance interval; per-method option tables ``[ranging.<method>]``.
-    """
-
-    methods: tuple = ("corr", "sage")
-    beta: float = 8.0
-    window_m: tuple = (0.0, 300.0)
-    variance: str = "zzb"
-    prior_range_m: float = 150.0
-    options: dict = field(default_factory=dict)
-
-    def __post_init__(self):
-        methods = tuple(self.methods)
-        if not methods:
-            raise ValidationError("ranging.methods", [], f"at least one of {METHODS}")
-        for m in methods:
-            if m not in METHODS:
-                raise ValidationError("ranging.methods", m, f"each one of {', '.join(METHODS)}")
-        object.__setattr__(self, "methods", methods)
-        b = v.positive("ranging.beta", self.beta)
-        if b < 1:
-            raise ValidationError("ranging.beta", self.beta, ">= 1")
-        w = tuple(float(x) for x in self.window_m)
-        if len(w) != 2 or not w[0] < w[1]:
-            raise ValidationError("ranging.window_m", self.window_m, "[lo, hi] with lo < hi [m]")
-        object.__setattr__(self, "window_m", w)
-        if self.variance not in ("zzb", "crb"):
-            raise ValidationError("ranging.variance", self.variance, "'zzb' or 'crb'")
-        v.positive("ranging.prior_range_m", self.prior_range_m)
-        for m, opts in self.options.items():
-            _check_estimator_options(m, opts, self.method_options(m))
-
-    @classmethod
-    def from_dict(cls, d: dict) -> RangingSpec:
-        """From the ``[ranging]`` table; sub-tables named after methods are their options."""
-        d = dict(d)
-        options = {m: d.pop(m) for m in list(d) if m in METHODS and isinstance(d[m], dict)}
-        check_keys(d, ["methods", "beta", "window_m", "variance", "prior_range_m"], "ranging")
-        v.check_types(cls, d, "ranging")
-        return cls(**d, options=options)
-
-    def method_options(self, method: str) -> dict:
-        """Keyword options of one estimator."""
-        base = {"window_m": self.window_m, "variance": self.variance}
-        if self.variance == "zzb":
-            base["prior_range_m"] = self.prior_range_m
-        key = "sage" if method == "sage_los" else method
-        return {**base, **self.options.get(key, {})}
-
-
-def _check_estimator_options(method: str, own: dict, merged: dict) -> None:
-    """Validate ``[ranging.<method>]`` before any work: its keys against the estimator's
-    keyword options, then every value by a dry run of the estimator on a one-link table
-    (the estimator's own checks, its error renamed to the recipe key)."""
-    import inspect
-
-    fn = ESTIMATORS[ORACLES.get(method, method)]
-    params = inspect.signature(fn).parameters.values()
-    check_keys(own, [p.name for p in params if p.kind is p.KEYWORD_ONLY], f"ranging.{method}")
-    if "window_m" not in own:  # the recipe's window was checked above, for its own system
-        merged = {**merged, "window_m": (0.0, 300.0)}
-    try:
-        estimate(method, _dry_run_table(), los=np.ones(1, bool), **merged)
-    except ValidationError as err:
-        raise ValidationError(f"ranging.{method}.{err.field}", err.value, err.allowed) from None
-    except TypeError as err:  # a value of the wrong kind the estimator's checks did not name
-        raise ValidationError(f"ranging.{method}", own, f"options of {method}: {err}") from None
-
-
-@functools.lru_cache(maxsize=1)
-def _dry_run_table():
-    """A one-link correlation table: 2049 subcarriers at 10 kHz (30 km unambiguous range),
-    β = 4 (a 3.7 m grid)."""
-    system = OFDMSystem(n_subcarriers=2049, subcarrier_spacing_hz=1.0e4)
-    rng = np.random.default_rng(0)
-    S = qpsk_symbols(system, 1, rng)
-    R = synthesize(PathSet.single_path([40.0 / C0], [1e-6]), S, system, rng)
-    return correlation_tables(R, S, system, beta=4.0)
+from phyloc.reporting import new_figure, save_figure
 
 
 @dataclass(frozen=True)
@@ -185,11 +94,6 @@ class RangingExperimentSpec:
         object.__setattr__(self, "distance_bins_m", bins)
         object.__setattr__(self, "awgn_snr_db", tuple(float(x) for x in self.awgn_snr_db))
         v.integer("experiment.awgn_links", self.awgn_links, minimum=0)
-
-    @classmethod
-    def from_dict(cls, d: dict, *, fast: bool = False) -> RangingExperimentSpec:
-        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        return experiment_from_dict(cls, d, fast=fast)
 
 
 def _task(payload, seed_seq):
@@ -235,99 +139,6 @@ def _run_one(payload, seed_seq):
 def _rmse(x) -> float:
     x = np.asarray(x, float)
     return float(math.sqrt(np.mean(x**2))) if x.size else float("nan")
-
-
-def prepare(recipe: Recipe, *, fast: bool = False):
-    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
-    full one) and return what it runs; no work is done (``phyloc evaluate`` and
-    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
-    exp = RangingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
-    rspec = recipe.section("ranging", RangingSpec)
-    net_raw = dict(recipe.section("network"))
-    chan = recipe.section("channel", ChannelSpec)
-    for n in exp.agents:  # validate every network before any work starts
-        NetworkSpec.from_dict({**net_raw, "n_agents": n})
-    return exp, rspec, net_raw, scenario_specs(chan, exp.scenarios)
-
-
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "ranging"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    system: OFDMSystem = recipe.system
-    exp, rspec, net_raw, specs = prepare(recipe, fast=fast)
-
-    payloads, keys = [], []
-    for tok, spec in specs.items():
-        for n in exp.agents:
-            net = NetworkSpec.from_dict({**net_raw, "n_agents": n})
-            for r in range(exp.realizations):
-                payloads.append(("network", (system, net, spec, rspec)))
-                keys.append((tok, n, r))
-    awgn = [
-        ("awgn", (system, db, exp.awgn_links, rspec.beta, rspec.window_m)) for db in exp.awgn_snr_db
-    ]
-    results = run_tasks(
-        _run_one,
-        payloads + awgn if exp.awgn_links else payloads,
-        recipe.seed,
-        workers=workers,
-        scheduler=scheduler,
-        desc="ranging",
-        progress=progress,
-    )
-    net_results, awgn_results = results[: len(payloads)], results[len(payloads) :]
-
-    S_ref = qpsk_symbols(system, 1, np.random.default_rng(0))[0]  # unit modulus: any row
-    edges = np.asarray(exp.distance_bins_m)
-    centers = 0.5 * (edges[1:] + edges[:-1])
-    figures: dict[str, float] = {}
-    series: dict[str, list] = {"distance_bin_centers_m": centers}
-    for tok in specs:
-        parts = [res for (t, _, _), res in zip(keys, net_results, strict=True) if t == tok]
-        d = np.concatenate([p["distance_m"] for p in parts])
-        los = np.concatenate([p["los"] for p in parts])
-        snr = np.concatenate([p["snr_budget"] for p in parts])
-        crb = crb_range(snr, S_ref, system)
-        zzb = ranging_variance(snr, S_ref, system, kind="zzb", prior_range_m=rspec.prior_range_m)
-        b = np.digitize(d, edges) - 1
-        inb = (b >= 0) & (b < centers.size)
-        figures[f"{tok}.n_links"] = int(d.size)
-        figures[f"{tok}.los_fraction"] = float(los.mean())
-        figures[f"crb.{tok}.rmse_m"] = float(math.sqrt(np.mean(crb)))
-        figures[f"zzb.{tok}.rmse_m"] = float(math.sqrt(np.mean(zzb)))
-        series[f"{tok}.links_by_distance"] = np.bincount(b[inb], minlength=centers.size)
-        series[f"crb.{tok}.rmse_by_distance_m"] = _binned_sqrt_mean(crb, b, inb, centers.size)
-        series[f"zzb.{tok}.rmse_by_distance_m"] = _binned_sqrt_mean(zzb, b, inb, centers.size)
-        for m in rspec.methods:
-            rng_est = np.concatenate([p[f"{m}.range_m"] for p in parts])
-            valid = np.concatenate([p[f"{m}.valid"] for p in parts])
-            err = rng_est - d
-            figures[f"{m}.{tok}.rmse_m"] = _rmse(err[valid])
-            figures[f"{m}.{tok}.rmse_los_m"] = _rmse(err[valid & los])
-            figures[f"{m}.{tok}.rmse_nlos_m"] = _rmse(err[valid & ~los])
-            figures[f"{m}.{tok}.valid_fraction"] = float(valid.mean())
-            figures[f"{m}.{tok}.rmse_over_zzb"] = (
-                figures[f"{m}.{tok}.rmse_m"] / math.sqrt(np.mean(zzb[valid]))
-                if valid.any()
-                else float("nan")
-            )
-            series[f"{m}.{tok}.rmse_by_distance_m"] = _binned_sqrt_mean(
-                err**2, b, inb & valid, centers.size
-            )
-    if awgn_results:
-        _awgn_figures(awgn_results, exp, system, S_ref, rspec, figures, series)
-    meta = {
-        "recipe": recipe.name,
-        "kind": recipe.kind,
-        "seed": recipe.seed,
-        "fast": fast,
-        "agents": list(exp.agents),
-        "realizations": exp.realizations,
-        "scenarios": dict(exp.scenarios),
-        "methods": list(rspec.methods),
-        "bounds_snr": "link budget (total received power / noise), one-path bounds",
-        "oracle_methods": [m for m in rspec.methods if m == "sage_los"],
-    }
-    return {"figures": figures, "series": series, "meta": meta}
 
 
 def _binned_sqrt_mean(x, b, mask, n_bins):
@@ -379,14 +190,9 @@ def _threshold(pc, ok) -> float:
 
 def plot(results: dict, path) -> None:
     """Draw the ranging figure (DiPNet Fig. 4 layout plus the AWGN sweep) from results only."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     fig_d, ser, meta = results["figures"], results["series"], results["meta"]
     tokens = list(meta["scenarios"])
-    fig = Figure(figsize=(5.0 * (len(tokens) + 1), 4.2), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(1, len(tokens) + 1)
+    fig, axes = new_figure(1, len(tokens) + 1, size=(5.0 * (len(tokens) + 1), 4.2))
     x = np.asarray(ser["distance_bin_centers_m"])
     styles = {"corr": "o-", "first_peak": "v-", "sage": "s-", "sage_los": "d--"}
     for ax, tok in zip(axes, tokens, strict=False):
@@ -424,10 +230,7 @@ def plot(results: dict, path) -> None:
     fig.suptitle(
         f"Ranging RMSE versus bounds — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
     )
-    fig.savefig(path, dpi=110)
-
-
-SUMMARY_HEADERS = ["scenario", "method", "RMSE [m]", "LOS [m]", "NLOS [m]", "valid", "RMSE/√ZZB"]
+    save_figure(fig, path)
 
 
 def summary_lines(results: dict):
@@ -469,3 +272,102 @@ def summary_rows(results: dict):
         rows.append((tok, "√CRB", f[f"crb.{tok}.rmse_m"], None, None, None, None))
         rows.append((tok, "√ZZB", f[f"zzb.{tok}.rmse_m"], None, None, None, None))
     return rows
+
+
+class RangingExperiment(Experiment):
+    """``kind = "ranging"``: one task per (scenario token, network size, realization), then one
+    per AWGN SNR point."""
+
+    kind = "ranging"
+    title = "ranging RMSE of the estimators against the CRB and ZZB (DiPNet Fig. 4)"
+    unit = "realization"
+    spec = RangingExperimentSpec
+    task = staticmethod(_run_one)
+    headers = ("scenario", "method", "RMSE [m]", "LOS [m]", "NLOS [m]", "valid", "RMSE/√ZZB")
+
+    def prepare(self, recipe, *, fast=False):
+        exp = self.experiment_spec(recipe, fast=fast)
+        rspec = recipe.section("ranging", RangingSpec)
+        nets = network_specs(recipe.section("network"), exp.agents)
+        specs = scenario_specs(recipe.section("channel", ChannelSpec), exp.scenarios)
+        return SimpleNamespace(system=recipe.system, exp=exp, rspec=rspec, nets=nets, specs=specs)
+
+    def tasks(self, plan):
+        system, exp, rspec, nets, specs = plan.system, plan.exp, plan.rspec, plan.nets, plan.specs
+        work = [
+            ((tok, n, r), ("network", (system, nets[n], spec, rspec)))
+            for tok, spec in specs.items()
+            for n in exp.agents
+            for r in range(exp.realizations)
+        ]
+        if exp.awgn_links:
+            work += [
+                (("awgn", db), ("awgn", (system, db, exp.awgn_links, rspec.beta, rspec.window_m)))
+                for db in exp.awgn_snr_db
+            ]
+        return work
+
+    def aggregate(self, plan, keys, results, ctx):
+        system, exp, rspec, specs = plan.system, plan.exp, plan.rspec, plan.specs
+        n_net = sum(1 for k in keys if k[0] != "awgn")
+        keys, net_results, awgn_results = keys[:n_net], results[:n_net], results[n_net:]
+        S_ref = qpsk_symbols(system, 1, np.random.default_rng(0))[0]  # unit modulus: any row
+        edges = np.asarray(exp.distance_bins_m)
+        centers = 0.5 * (edges[1:] + edges[:-1])
+        figures: dict[str, float] = {}
+        series: dict[str, list] = {"distance_bin_centers_m": centers}
+        for tok in specs:
+            parts = [res for (t, _, _), res in zip(keys, net_results, strict=True) if t == tok]
+            d = np.concatenate([p["distance_m"] for p in parts])
+            los = np.concatenate([p["los"] for p in parts])
+            snr = np.concatenate([p["snr_budget"] for p in parts])
+            crb = crb_range(snr, S_ref, system)
+            zzb = ranging_variance(
+                snr, S_ref, system, kind="zzb", prior_range_m=rspec.prior_range_m
+            )
+            b = np.digitize(d, edges) - 1
+            inb = (b >= 0) & (b < centers.size)
+            figures[f"{tok}.n_links"] = int(d.size)
+            figures[f"{tok}.los_fraction"] = float(los.mean())
+            figures[f"crb.{tok}.rmse_m"] = float(math.sqrt(np.mean(crb)))
+            figures[f"zzb.{tok}.rmse_m"] = float(math.sqrt(np.mean(zzb)))
+            series[f"{tok}.links_by_distance"] = np.bincount(b[inb], minlength=centers.size)
+            series[f"crb.{tok}.rmse_by_distance_m"] = _binned_sqrt_mean(crb, b, inb, centers.size)
+            series[f"zzb.{tok}.rmse_by_distance_m"] = _binned_sqrt_mean(zzb, b, inb, centers.size)
+            for m in rspec.methods:
+                rng_est = np.concatenate([p[f"{m}.range_m"] for p in parts])
+                valid = np.concatenate([p[f"{m}.valid"] for p in parts])
+                err = rng_est - d
+                figures[f"{m}.{tok}.rmse_m"] = _rmse(err[valid])
+                figures[f"{m}.{tok}.rmse_los_m"] = _rmse(err[valid & los])
+                figures[f"{m}.{tok}.rmse_nlos_m"] = _rmse(err[valid & ~los])
+                figures[f"{m}.{tok}.valid_fraction"] = float(valid.mean())
+                figures[f"{m}.{tok}.rmse_over_zzb"] = (
+                    figures[f"{m}.{tok}.rmse_m"] / math.sqrt(np.mean(zzb[valid]))
+                    if valid.any()
+                    else float("nan")
+                )
+                series[f"{m}.{tok}.rmse_by_distance_m"] = _binned_sqrt_mean(
+                    err**2, b, inb & valid, centers.size
+                )
+        if awgn_results:
+            _awgn_figures(awgn_results, exp, system, S_ref, rspec, figures, series)
+        return figures, series
+
+    def meta(self, plan, ctx):
+        exp, rspec = plan.exp, plan.rspec
+        return {
+            "agents": list(exp.agents),
+            "realizations": exp.realizations,
+            "scenarios": dict(exp.scenarios),
+            "methods": list(rspec.methods),
+            "bounds_snr": "link budget (total received power / noise), one-path bounds",
+            "oracle_methods": [m for m in rspec.methods if m == "sage_los"],
+        }
+
+    summary_rows = staticmethod(summary_rows)
+    summary_lines = staticmethod(summary_lines)
+    plot = staticmethod(plot)
+
+
+RANGING = RangingExperiment()

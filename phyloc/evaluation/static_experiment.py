@@ -7,7 +7,7 @@ square, 13 fixed anchors — layout
 communication range, one-sided exponential ranging errors of mean 0.38 m, POA-NBP eq. (2)):
 
 1. **Polygon support outer-approximation** (POA-NBP Fig. 9): POA
-   (:func:`~phyloc.localization.static.polygons.poa`)
+   (:func:`~phyloc.localization.static.poa_network.poa`)
    for every ``N_E`` of ``experiment.n_edges`` over ``poa_iterations`` iterations, and the
    ellipse outer-approximation baseline — mean area per iteration; the fraction of polygons
    that contain their agent (with non-negative errors: all of them); POA time per node.
@@ -62,7 +62,7 @@ comparison's method and ``N_S`` the comparison's value is kept. The numbers come
 method's ``Result.diagnostics`` (``floats_per_link_iteration``, ``operations_per_node``,
 ``support_floats_per_link_iteration``; see :mod:`phyloc.localization.static.nbp` and
 :mod:`phyloc.localization.static.gaussian_bp` for what is counted) and from
-:class:`~phyloc.localization.static.polygons.POAResult` for the polygon study; a NaN (no
+:class:`~phyloc.localization.static.poa_network.POAResult` for the polygon study; a NaN (no
 messages: ``wls`` in joint mode, centralized; no support phase) gives no figure.
 
 Figures (``results.json``; ``<m>`` a method, ``<ne>`` an ``N_E``, ``<l>`` an iteration, ``<n>``
@@ -114,28 +114,29 @@ everything else is identical for a seed whatever the worker count.
 
 References
 ----------
-R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-Indoor Localization." ("POA-NBP").
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
 from phyloc import _validate as v
 from phyloc._validate import check_keys
-from phyloc.config import Recipe
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict
+from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.static_scenarios import paper_static_scenario
 from phyloc.localization import METHODS as REGISTRY
 from phyloc.localization.static import StaticPrior
-from phyloc.localization.static.polygons import ellipse_outer_approximation, poa
+from phyloc.localization.static.ellipses import ellipse_outer_approximation
+from phyloc.localization.static.poa_network import poa
 from phyloc.localization.static.static_ranges import range_error_model
-from phyloc.parallel import run_tasks
+from phyloc.reporting import new_figure, save_figure
 
 #: The methods of the POA-NBP paper's comparison (the default of ``experiment.methods``); any
 #: method registered in :data:`phyloc.localization.METHODS` with family ``"static"`` may be
@@ -293,11 +294,6 @@ class StaticExperimentSpec:
             if self.sample_sweep_topologies is None
             else self.sample_sweep_topologies
         )
-
-    @classmethod
-    def from_dict(cls, d: dict, *, fast: bool = False) -> StaticExperimentSpec:
-        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        return experiment_from_dict(cls, d, fast=fast)
 
     def error_model(self):
         """The ranging error model of the recipe."""
@@ -490,56 +486,6 @@ def _run_method(name, meas, priors, options, rng):
     return REGISTRY[name].run(meas, prior, rng, options)
 
 
-def prepare(recipe: Recipe, *, fast: bool = False):
-    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
-    full one) and return what it runs; no work is done (``phyloc evaluate`` and
-    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
-    exp = StaticExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
-    localization = recipe.section("localization")
-    opts = method_options(localization, exp)
-    return exp, localization, opts
-
-
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "static"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    exp, localization, opts = prepare(recipe, fast=fast)
-    results = run_tasks(
-        _task,
-        [(exp, localization, i) for i in range(exp.topologies)],
-        recipe.seed,
-        workers=workers,
-        scheduler=scheduler,
-        desc="topologies",
-        progress=progress,
-    )
-    figures, series = _aggregate(results, exp)
-    meta = {
-        "recipe": recipe.name,
-        "kind": recipe.kind,
-        "seed": recipe.seed,
-        "fast": fast,
-        "topologies": exp.topologies,
-        "n_agents": exp.n_agents,
-        "methods": list(exp.methods),
-        "labels": {m: REGISTRY[m].label for m in REGISTRY.family("static")},
-        "n_edges": list(exp.n_edges),
-        "sample_sweep": list(exp.sample_sweep),
-        "sample_methods": list(exp.sample_methods),
-        "sample_sweep_topologies": exp.sweep_topologies,
-        "outage_thresholds_m": list(exp.outage_thresholds_m),
-        "experiment": dataclasses.asdict(exp),
-        "options": {m: dataclasses.asdict(o) for m, o in opts.items()},
-        "timing": "wall time per node of this process (includes worker contention)",
-        "convergence": (
-            "converged after iteration l-1 at the first l with |e_l - e_(l-1)| <= "
-            "max(convergence_rel * e_(l-1), convergence_abs_m) (paper footnote 5); settling: "
-            "first iteration from which e stays within max(convergence_rel * e_final, "
-            "convergence_abs_m) of e_final"
-        ),
-    }
-    return {"figures": figures, "series": series, "meta": meta}
-
-
 def convergence_from_curve(curve, rel: float, abs_m: float) -> int:
     """Iterations to convergence by the paper's rule (§V footnote 5): ``l − 1`` for the first
     ``l >= 2`` (1-based) with ``|e_l − e_{l−1}| <= max(rel·e_{l−1}, abs_m)``; ``len(curve)``
@@ -716,13 +662,8 @@ def summary_lines(results: dict):
 
 def plot(results: dict, path) -> None:
     """Figs. 9–12: polygon area vs iteration, mean error vs iteration, outage, samples."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     ser, meta = results["series"], results["meta"]
-    fig, ax = plt.subplots(1, 4, figsize=(20, 4.6))
+    fig, ax = new_figure(1, 4, size=(20, 4.6))
     it = ser["poa_iteration"]
     for ne in meta["n_edges"]:
         ax[0].plot(it, ser[f"poa.ne{ne}.area_m2"], "o-", label=f"POA N_E={ne}")
@@ -752,6 +693,59 @@ def plot(results: dict, path) -> None:
         a.grid(True, which="both", alpha=0.3)
         a.legend(fontsize=7)
     fig.suptitle(f"{meta['recipe']}: {meta['topologies']} topologies x {meta['n_agents']} agents")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
+
+
+class StaticExperiment(Experiment):
+    """``kind = "static"``: one task per topology, every method on the same ranges."""
+
+    kind = "static"
+    title = "static cooperative localization with polygon-constrained NBP (POA-NBP Figs. 9–12)"
+    unit = "topology"
+    spec = StaticExperimentSpec
+    task = staticmethod(_task)
+    progress_label = "topologies"
+
+    def prepare(self, recipe, *, fast=False):
+        exp = self.experiment_spec(recipe, fast=fast)
+        localization = recipe.section("localization")
+        return SimpleNamespace(
+            exp=exp, localization=localization, opts=method_options(localization, exp)
+        )
+
+    def tasks(self, plan):
+        return [(i, (plan.exp, plan.localization, i)) for i in range(plan.exp.topologies)]
+
+    def aggregate(self, plan, keys, results, ctx):
+        return _aggregate(results, plan.exp)
+
+    def meta(self, plan, ctx):
+        exp, opts = plan.exp, plan.opts
+        return {
+            "topologies": exp.topologies,
+            "n_agents": exp.n_agents,
+            "methods": list(exp.methods),
+            "labels": {m: REGISTRY[m].label for m in REGISTRY.family("static")},
+            "n_edges": list(exp.n_edges),
+            "sample_sweep": list(exp.sample_sweep),
+            "sample_methods": list(exp.sample_methods),
+            "sample_sweep_topologies": exp.sweep_topologies,
+            "outage_thresholds_m": list(exp.outage_thresholds_m),
+            "experiment": dataclasses.asdict(exp),
+            "options": {m: dataclasses.asdict(o) for m, o in opts.items()},
+            "timing": "wall time per node of this process (includes worker contention)",
+            "convergence": (
+                "converged after iteration l-1 at the first l with |e_l - e_(l-1)| <= "
+                "max(convergence_rel * e_(l-1), convergence_abs_m) (paper footnote 5); settling: "
+                "first iteration from which e stays within max(convergence_rel * e_final, "
+                "convergence_abs_m) of e_final"
+            ),
+        }
+
+    summary_rows = staticmethod(summary_rows)
+    summary_headers = staticmethod(summary_headers)
+    summary_lines = staticmethod(summary_lines)
+    plot = staticmethod(plot)
+
+
+STATIC = StaticExperiment()

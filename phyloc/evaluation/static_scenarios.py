@@ -8,8 +8,8 @@ never :attr:`StaticScenario.positions` of the agents.
 
 References
 ----------
-R. Mendrzik and G. Bauch, "Position-Constrained Stochastic Inference for Cooperative
-Indoor Localization." ("POA-NBP").
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
 """
 
 from __future__ import annotations

@@ -116,15 +116,16 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
 from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.analysis.pcrlb import pcrlb
-from phyloc.config import Recipe
+from phyloc.channels import ChannelSpec
 from phyloc.errors import ValidationError
-from phyloc.evaluation._common import experiment_from_dict
+from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.range_scenarios import (
     RangeScenario,
     flow_example,
@@ -132,9 +133,10 @@ from phyloc.evaluation.range_scenarios import (
     scenario_network_spec,
     simulate_scenario,
 )
+from phyloc.evaluation.sections import RangingSpec, scenario_specs
 from phyloc.localization import METHODS
 from phyloc.localization.tracking import STATE_MODELS, RangeModel, paper_prior
-from phyloc.parallel import run_tasks
+from phyloc.reporting import new_figure, save_figure
 
 FAMILY = "tracking"
 #: The methods of PF-BP §VI, the default of ``experiment.methods``.
@@ -307,11 +309,6 @@ class TrackingExperimentSpec:
         )
         object.__setattr__(self, "memory_agents", sizes)
         v.integer("experiment.memory_steps", self.memory_steps, minimum=1)
-
-    @classmethod
-    def from_dict(cls, d: dict, *, fast: bool = False) -> TrackingExperimentSpec:
-        """From ``[experiment]``; with ``fast`` the ``[experiment.fast]`` values win."""
-        return experiment_from_dict(cls, d, fast=fast)
 
     def model(self) -> RangeModel:
         """The :class:`RangeModel` of the recipe."""
@@ -630,90 +627,6 @@ def memory_study(exp, options, bases, seed, *, progress=True) -> dict:
     return figures
 
 
-def prepare(recipe: Recipe, *, fast: bool = False):
-    """Validate everything :func:`run` reads from ``recipe`` (the ``fast`` setting or the
-    full one) and return what it runs; no work is done (``phyloc evaluate`` and
-    :func:`phyloc.evaluation.recipes.validate_recipe` call it for both settings first)."""
-    exp = TrackingExperimentSpec.from_dict(recipe.section("experiment"), fast=fast)
-    exp.model()  # validates the model
-    options = method_options(recipe.section("localization"), exp)
-    bases = method_bases(recipe.section("localization"), exp)
-    extra = None
-    if exp.measurements == "sage":
-        from phyloc.channels import ChannelSpec
-        from phyloc.evaluation._common import scenario_specs
-        from phyloc.evaluation.ranging_experiment import RangingSpec
-
-        chan = recipe.section("channel", ChannelSpec)
-        chan = scenario_specs(chan, {"channel": chan.scenario})["channel"]
-        extra = (recipe.system, chan, recipe.section("ranging", RangingSpec))
-    for tok, scen in exp.scenarios.items():  # validate every network before any work starts
-        try:
-            _network_spec(exp, scen)
-        except ValidationError as exc:
-            raise ValidationError(
-                f"experiment.scenarios.{tok}.{exc.field}", exc.value, exc.allowed
-            ) from None
-    return exp, options, bases, extra
-
-
-def run(recipe: Recipe, *, fast: bool = False, workers=None, scheduler=None, progress=True):
-    """Run a ``kind = "tracking"`` recipe; returns ``{"figures", "series", "meta"}``."""
-    exp, options, bases, extra = prepare(recipe, fast=fast)
-    payloads, keys = [], []
-    for tok, scen in exp.scenarios.items():
-        for r in range(exp.runs):
-            payloads.append((exp, scen, options, bases, extra, r))
-            keys.append((tok, r))
-    results = run_tasks(
-        _task,
-        payloads,
-        recipe.seed,
-        workers=workers,
-        scheduler=scheduler,
-        desc="tracking",
-        progress=progress,
-    )
-    figures, series = _aggregate(keys, results, exp)
-    if "pfbp" in bases.values():  # PF-BP Fig. 1: the flow of two cooperating agents
-        example = flow_example(np.random.default_rng(np.random.SeedSequence(recipe.seed)))
-        for key, value in example.items():
-            series[f"flow_example.{key}"] = value
-    if exp.memory_agents:
-        mem = memory_study(exp, options, bases, recipe.seed, progress=progress)
-        figures.update(mem)
-        first = next(iter(exp.scenarios))
-        series["memory_agents"] = np.asarray(exp.memory_agents)
-        for m in exp.methods:
-            series[f"{m}.{first}.peak_rss_mb_by_agents"] = np.array(
-                [mem[f"{m}.{first}.agents_{n}.peak_rss_mb"] for n in exp.memory_agents]
-            )
-    meta = {
-        "recipe": recipe.name,
-        "kind": recipe.kind,
-        "seed": recipe.seed,
-        "fast": fast,
-        "runs": exp.runs,
-        "method_runs": {m: min(n, exp.runs) for m, n in exp.method_runs.items()},
-        "n_steps": exp.n_steps,
-        "scenarios": {t: dict(s) for t, s in exp.scenarios.items()},
-        "methods": list(exp.methods),
-        "blocks": list("pva"[: exp.model().order]),
-        "report_steps": list(exp.report_steps),
-        "outage_steps": list(exp.outage_steps),
-        "outage_thresholds_m": list(exp.outage_thresholds_m),
-        "measurements": exp.measurements,
-        "options": {m: dataclasses.asdict(o) for m, o in options.items()},
-        "labels": {m: METHODS[m].label if m == b else m for m, b in bases.items()},
-        "bases": dict(bases),
-        "memory_agents": list(exp.memory_agents),
-        "timing": "median wall time over all steps of all runs (includes worker contention)",
-    }
-    if exp.measurements == "sage":
-        meta["pcrlb_note"] = "Gaussian-model PCRLB at experiment.sigma_r on the valid SAGE links"
-    return {"figures": figures, "series": series, "meta": meta}
-
-
 def _aggregate(keys, results, exp):
     K = exp.n_steps
     figures: dict[str, float] = {}
@@ -899,16 +812,11 @@ def _plot_example(fig, ax, ser, tok) -> None:
 def plot(results: dict, path) -> None:
     """RMSE of p, v, a versus k with the PCRLB (Fig. 4, 7) and outage curves (Fig. 6), per
     scenario (columns), from results only."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     ser, meta = results["series"], results["meta"]
     toks = list(meta["scenarios"])
     blocks = meta["blocks"]
     n_rows = len(blocks) + 2
-    fig = Figure(figsize=(4.8 * len(toks), 3.0 * n_rows), layout="constrained")
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(n_rows, len(toks), squeeze=False)
+    fig, axes = new_figure(n_rows, len(toks), squeeze=False, size=(4.8 * len(toks), 3.0 * n_rows))
     k = ser["k"]
     ylabel = {"p": "RMSE_p [m]", "v": "RMSE_v [m/s]", "a": "RMSE_a [m/s²]"}
     for j, tok in enumerate(toks):
@@ -947,7 +855,7 @@ def plot(results: dict, path) -> None:
     fast = " (fast)" if meta.get("fast") else ""
     sep = "\n" if len(toks) == 1 else " — "  # one column: the title on two lines
     fig.suptitle(f"Cooperative tracking vs PCRLB{sep}{meta['recipe']}{fast}")
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path)
     if "memory_agents" in ser:
         _plot_memory(results, Path(path).with_name(f"{Path(path).stem}_memory.png"))
     if "flow_example.paths" in ser:
@@ -957,18 +865,13 @@ def plot(results: dict, path) -> None:
 def _plot_flow(results: dict, path) -> None:
     """PF-BP Fig. 1: particle paths of the flow (dash-dotted) over each agent's anchor
     likelihood (colour map: two ring crossings each), anchors and their links."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     ser = results["series"]
     g = np.asarray(ser["flow_example.grid_m"])
     maps = np.asarray(ser["flow_example.anchor_loglik"])
     paths = np.asarray(ser["flow_example.paths"])  # [λ-steps + 1, M, agent, xy]
     anchors = np.asarray(ser["flow_example.anchors"])
     truth = np.asarray(ser["flow_example.truth"])
-    fig = Figure(figsize=(5.6, 5.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = new_figure(size=(5.6, 5.0))
     dens = np.exp(maps - maps.max(axis=(1, 2), keepdims=True)).sum(axis=0)
     ax.pcolormesh(g, g, dens.T, cmap="viridis", shading="auto")
     for a, k in np.asarray(ser["flow_example.links"]):
@@ -992,20 +895,15 @@ def _plot_flow(results: dict, path) -> None:
         "(white: prior particles, red: after the flow; colour: anchor likelihood)",
         fontsize=8,
     )
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path)
 
 
 def _plot_memory(results: dict, path) -> None:
     """Peak RSS added by each method's run versus the number of agents (the memory study)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     fig_, ser, meta = results["figures"], results["series"], results["meta"]
     first = next(iter(meta["scenarios"]))
     n = ser["memory_agents"]
-    fig = Figure(figsize=(5.5, 4.0), layout="constrained")
-    FigureCanvasAgg(fig)
-    ax = fig.subplots()
+    fig, ax = new_figure(size=(5.5, 4.0))
     for i, m in enumerate(meta["methods"]):
         run = [fig_[f"{m}.{first}.agents_{a}.run_rss_mb"] for a in n]
         ax.loglog(n, np.maximum(run, 0.1), "o-", color=f"C{i}", label=m)
@@ -1015,4 +913,97 @@ def _plot_memory(results: dict, path) -> None:
     ax.legend(fontsize=7)
     r = meta["scenarios"][first]["comm_range_m"]
     ax.set_title(f"{meta['recipe']}: memory vs network size (r_max = {r:g} m)", fontsize=9)
-    fig.savefig(path, dpi=100)
+    save_figure(fig, path)
+
+
+class TrackingExperiment(Experiment):
+    """``kind = "tracking"``: one task per (scenario token, Monte Carlo run), every method on
+    the same trajectories and ranges; then PF-BP Fig. 1's flow example and the memory study."""
+
+    kind = "tracking"
+    title = "range-level cooperative tracking against the PCRLB (PF-BP Figs. 4–7, Tables I–II)"
+    unit = "run"
+    spec = TrackingExperimentSpec
+    task = staticmethod(_task)
+
+    def prepare(self, recipe, *, fast=False):
+        exp = self.experiment_spec(recipe, fast=fast)
+        exp.model()  # validates the model
+        options = method_options(recipe.section("localization"), exp)
+        bases = method_bases(recipe.section("localization"), exp)
+        extra = None
+        if exp.measurements == "sage":
+            chan = recipe.section("channel", ChannelSpec)
+            chan = scenario_specs(chan, {"channel": chan.scenario})["channel"]
+            extra = (recipe.system, chan, recipe.section("ranging", RangingSpec))
+        for tok, scen in exp.scenarios.items():  # every network before any work starts
+            try:
+                _network_spec(exp, scen)
+            except ValidationError as exc:
+                raise ValidationError(
+                    f"experiment.scenarios.{tok}.{exc.field}", exc.value, exc.allowed
+                ) from None
+        return SimpleNamespace(exp=exp, options=options, bases=bases, extra=extra)
+
+    def tasks(self, plan):
+        exp = plan.exp
+        return [
+            ((tok, r), (exp, scen, plan.options, plan.bases, plan.extra, r))
+            for tok, scen in exp.scenarios.items()
+            for r in range(exp.runs)
+        ]
+
+    def aggregate(self, plan, keys, results, ctx):
+        exp, options, bases = plan.exp, plan.options, plan.bases
+        figures, series = _aggregate(keys, results, exp)
+        if "pfbp" in bases.values():  # PF-BP Fig. 1: the flow of two cooperating agents
+            example = flow_example(np.random.default_rng(np.random.SeedSequence(ctx.seed)))
+            for key, value in example.items():
+                series[f"flow_example.{key}"] = value
+        if exp.memory_agents:
+            mem = memory_study(exp, options, bases, ctx.seed, progress=ctx.progress)
+            figures.update(mem)
+            first = next(iter(exp.scenarios))
+            series["memory_agents"] = np.asarray(exp.memory_agents)
+            for m in exp.methods:
+                series[f"{m}.{first}.peak_rss_mb_by_agents"] = np.array(
+                    [mem[f"{m}.{first}.agents_{n}.peak_rss_mb"] for n in exp.memory_agents]
+                )
+        return figures, series
+
+    def meta(self, plan, ctx):
+        exp, options, bases = plan.exp, plan.options, plan.bases
+        meta = {
+            "runs": exp.runs,
+            "method_runs": {m: min(n, exp.runs) for m, n in exp.method_runs.items()},
+            "n_steps": exp.n_steps,
+            "scenarios": {t: dict(s) for t, s in exp.scenarios.items()},
+            "methods": list(exp.methods),
+            "blocks": list("pva"[: exp.model().order]),
+            "report_steps": list(exp.report_steps),
+            "outage_steps": list(exp.outage_steps),
+            "outage_thresholds_m": list(exp.outage_thresholds_m),
+            "measurements": exp.measurements,
+            "options": {m: dataclasses.asdict(o) for m, o in options.items()},
+            "labels": {m: METHODS[m].label if m == b else m for m, b in bases.items()},
+            "bases": dict(bases),
+            "memory_agents": list(exp.memory_agents),
+            "timing": "median wall time over all steps of all runs (includes worker contention)",
+        }
+        if exp.measurements == "sage":
+            meta["pcrlb_note"] = (
+                "Gaussian-model PCRLB at experiment.sigma_r on the valid SAGE links"
+            )
+        if exp.measurements == "sage":
+            meta["pcrlb_note"] = (
+                "Gaussian-model PCRLB at experiment.sigma_r on the valid SAGE links"
+            )
+        return meta
+
+    summary_rows = staticmethod(summary_rows)
+    summary_headers = staticmethod(summary_headers)
+    summary_lines = staticmethod(summary_lines)
+    plot = staticmethod(plot)
+
+
+TRACKING = TrackingExperiment()
