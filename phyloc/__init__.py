@@ -1,7 +1,7 @@
 """phyloc: signal-level PHY simulation and direct localization of wireless networks.
 
-The package is layered (see ``DESIGN.md``): :mod:`phyloc.phy` and :mod:`phyloc.channels` at the
-bottom, :mod:`phyloc.network` beside them, ranging and localization above, datasets and
+The package is layered (see :doc:`/guide/design`): :mod:`phyloc.phy` and :mod:`phyloc.channels`
+at the bottom, :mod:`phyloc.network` beside them, ranging and localization above, datasets and
 evaluation on top, and the command line (:mod:`phyloc.cli`) last.
 
 References
@@ -17,7 +17,8 @@ POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference fo
 indoor localization."
 
 WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
-updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+updated 2008; the table each value of the shipped channel files comes from is given in
+``channels/PROVENANCE.md``.
 """
 
 import os

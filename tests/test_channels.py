@@ -1,6 +1,6 @@
 """Tests of phyloc.channels: scenario files, loader validation, sampler statistics, two-way.
 
-Key table numbers are copied here from WINNER II D1.1.2 (via shared/reference/winner2/) and
+Key table numbers are copied here from WINNER II D1.1.2 (sources: channels/PROVENANCE.md) and
 the DiPNet paper, independently of the loader, so a wrong transcription in channels/*.toml
 fails a test.
 """
@@ -30,7 +30,7 @@ from phyloc.phy import OFDMSystem, PathSet
 C0 = 299_792_458.0
 FC = 5.2e9  # DiPNet §V-A
 
-# --- independent copy of the tables (D1.1.2 Table 4-4 / 4-5; reference README) -----------------
+# --- independent copy of the tables (D1.1.2 Table 4-4 / 4-5; channels/PROVENANCE.md) ----------
 # name: (ds_log10 mu, sigma), (K mu, sigma) or None, clusters N, sf std per segment
 TABLE = {
     "winner2_c2_los": ((-7.39, 0.63), (7.0, 3.0), 8),
@@ -91,7 +91,7 @@ EXPECTED_NAMES = {
 }
 
 
-def test_scenario_names_cover_the_issue():
+def test_scenario_names_cover_the_shipped_scenarios():
     assert EXPECTED_NAMES <= set(scenario_names())
 
 
@@ -202,7 +202,7 @@ def test_los_probability_laws():
 
 @pytest.mark.parametrize(("name", "target"), [("winner2_c2", 0.66), ("winner2_d1", 0.95)])
 def test_los_fraction_in_100m_square(name, target):
-    # issue 3: 66 % ± 1 % (C2) and 95 % ± 1 % (D1); DiPNet reports 65.6 % and 95.1 %
+    # 66 % ± 1 % (C2) and 95 % ± 1 % (D1); DiPNet reports 65.6 % and 95.1 %
     rng = rng_(11)
     d = square_pair_distances(100_000, 100.0, rng)
     draw = draw_links(name, d, rng)
@@ -216,7 +216,7 @@ def test_lsp_statistics(name):
     rng = rng_(5)
     draw = draw_links(name, rng.uniform(5.0, 140.0, N_STAT), rng)
     lg = np.log10(draw.delay_spread_s)
-    assert abs(lg.mean() - mu) <= 0.05 * abs(mu)  # issue: within 5 % of the table
+    assert abs(lg.mean() - mu) <= 0.05 * abs(mu)  # within 5 % of the table
     assert abs(lg.std(ddof=1) - sigma) <= 0.05 * sigma
     # and statistically tight: SE(mean) <= 0.0045, SE(std)/std ~ 0.5 % at N_STAT links
     assert abs(lg.mean() - mu) <= 0.05
@@ -315,7 +315,8 @@ def test_cluster_power_law_and_shadowing(name):
 
 
 def test_los_delay_scaling_reference_values():
-    # shared/reference/winner2/README.md: D(7 dB) = 0.483, D(0) = 0.7705, D(−5 dB) = 0.990
+    # WINNER II D1.1.2 eq. 4.3 (channels/PROVENANCE.md): D(7 dB) = 0.483, D(0) = 0.7705,
+    # D(−5 dB) = 0.990
     coeffs = WINNER_D_COEFFS
     got = los_delay_scaling(np.array([7.0, 0.0, -5.0]), coeffs)
     np.testing.assert_allclose(got, [0.483, 0.7705, 0.990], atol=6e-4)

@@ -1,5 +1,5 @@
-"""Documentation conventions (DESIGN.md, "Docs"): every equation citation names its paper and
-every public module has a ``References`` section."""
+"""Documentation conventions (``docs/guide/design.rst``): every equation citation names its
+paper and every public module has a ``References`` section."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "phyloc"
 
-#: Short names of the sources an equation number may refer to (papers in ../shared/papers,
-#: the WINNER II report and textbooks).
+#: Short names of the sources an equation number may refer to (the papers of
+#: ``phyloc/references.py``, the WINNER II report and textbooks).
 SOURCES = (
     r"DiPNet|PF-BP|POA-NBP|WINNER|Kay|Ziv|Zakai|Tichavsk|Silverman|Umeyama|Kabsch|Daum|Julier"
     r"|Ihler|Sudderth|Van Trees|Bellini|Weiss|Tipping"

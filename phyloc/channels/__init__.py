@@ -1,4 +1,4 @@
-"""Channel-model sampling: LOS/NLOS, path loss, shadowing, clusters, NLOS bias (DESIGN.md).
+"""Channel-model sampling: LOS/NLOS, path loss, shadowing, clusters, NLOS bias.
 
 Scenarios are data: the TOML files of the project's ``channels/`` folder (shipped as
 ``phyloc.scenarios``) or a user's own file, validated by :func:`load_scenario`. The sampler
@@ -18,7 +18,8 @@ True
 References
 ----------
 WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
-updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+updated 2008; the table each value of the shipped channel files comes from is given in
+``channels/PROVENANCE.md``.
 
 DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
 P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.

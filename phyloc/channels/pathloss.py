@@ -1,9 +1,9 @@
 """Path-loss laws and LOS-probability laws of the channel scenarios.
 
 All formulas take distances in m and the carrier frequency in Hz and return dB; the coefficient
-names follow WINNER II D1.1.2 Part I, Table 4-4 (path loss) and Table 4-7 (LOS probability), as
-transcribed in ``shared/reference/winner2/``. Frequencies enter as ``log10(f_c / f_ref)`` with
-``f_ref = 5 GHz`` (D1.1.2 writes ``log10(f_c[GHz]/5.0)``).
+names follow WINNER II D1.1.2 Part I, Table 4-4 (path loss) and Table 4-7 (LOS probability);
+which table each value comes from is in ``channels/PROVENANCE.md``. Frequencies enter as
+``log10(f_c / f_ref)`` with ``f_ref = 5 GHz`` (D1.1.2 writes ``log10(f_c[GHz]/5.0)``).
 
 **Device-to-device adaptation** (applies to every law, see also ``channels/README.md``):
 
@@ -33,7 +33,8 @@ transcribed in ``shared/reference/winner2/``. Frequencies enter as ``log10(f_c /
 References
 ----------
 WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
-updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+updated 2008; the table each value of the shipped channel files comes from is given in
+``channels/PROVENANCE.md``.
 """
 
 from __future__ import annotations

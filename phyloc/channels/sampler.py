@@ -1,9 +1,9 @@
 """Per-link channel draws: LOS/NLOS, path loss, shadowing, clusters, NLOS bias, phases.
 
 For every link u←v at distance d the sampler returns paths with absolute delays
-``τ_l = d/c0 + b + δ_l`` and complex gains ``α_l = √A_l·e^{jφ_l}`` (DESIGN.md signal model;
-DiPNet eq. (6), §II-B), where ``b > 0`` only in NLOS and ``δ_0 = 0`` is the LOS path,
-absent in NLOS. The path powers sum to the link-budget received power
+``τ_l = d/c0 + b + δ_l`` and complex gains ``α_l = √A_l·e^{jφ_l}`` (the signal model of
+:doc:`/guide/design`; DiPNet eq. (6), §II-B), where ``b > 0`` only in NLOS and ``δ_0 = 0`` is
+the LOS path, absent in NLOS. The path powers sum to the link-budget received power
 ``P_tx − PL(d) − SF`` (:meth:`phyloc.phy.OFDMSystem.received_power_w`).
 
 WINNER II model (D1.1.2 Part I, Sec. 4.2), per link
@@ -48,7 +48,8 @@ consumed in a fixed order, so a draw depends only on the seed, the scenario and 
 References
 ----------
 WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
-updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+updated 2008; the table each value of the shipped channel files comes from is given in
+``channels/PROVENANCE.md``.
 
 DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
 P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.

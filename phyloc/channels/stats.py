@@ -31,7 +31,8 @@ segment std, WINNER II D1.1.2 Table 4-4); path count: the expected count given
 References
 ----------
 WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
-updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+updated 2008; the table each value of the shipped channel files comes from is given in
+``channels/PROVENANCE.md``.
 """
 
 from __future__ import annotations
@@ -50,6 +51,7 @@ from phyloc.channels.scenario import (
     load_scenario,
 )
 from phyloc.errors import ValidationError
+from phyloc.reporting import new_figure, save_figure
 
 
 def square_pair_distances(n_links: int, side_m: float, rng: np.random.Generator) -> np.ndarray:
@@ -230,9 +232,6 @@ def plot_power_delay_profiles(draw: ChannelDraw, path_png, n_examples: int = 6) 
     Path
         The file written.
     """
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     n_ex = v.integer("n_examples", n_examples, minimum=1)
     los_idx = np.flatnonzero(draw.los)
     nlos_idx = np.flatnonzero(~draw.los)
@@ -242,9 +241,8 @@ def plot_power_delay_profiles(draw: ChannelDraw, path_png, n_examples: int = 6) 
     picks = picks[:n_ex]
     cols = min(3, max(len(picks), 1))
     rows = max(math.ceil(len(picks) / cols), 1)
-    fig = Figure(figsize=(4.2 * cols, 3.0 * rows), constrained_layout=True)
-    FigureCanvasAgg(fig)
-    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    fig, axes = new_figure(rows, cols, squeeze=False, size=(4.2 * cols, 3.0 * rows))
+    axes = axes.ravel()
     exc = draw.excess_delays()
     for ax, i in zip(axes, picks, strict=False):
         a, b = draw.paths.offsets[i], draw.paths.offsets[i + 1]
@@ -268,7 +266,7 @@ def plot_power_delay_profiles(draw: ChannelDraw, path_png, n_examples: int = 6) 
         ax.set_visible(False)
     fig.suptitle(f"Power-delay profiles — {draw.scenario} ({draw.ranging})", fontsize=10)
     out = Path(path_png)
-    fig.savefig(out, dpi=110)
+    save_figure(fig, out)
     return out
 
 

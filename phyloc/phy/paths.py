@@ -28,7 +28,7 @@ class PathSet:
     ----------
     delays : [n_paths_total], float64
         Path delays ``τ_l`` [s], finite and >= 0. For a link u←v,
-        ``τ_l = d_uv/c0 + b_uv + δ_l`` (DESIGN.md, signal model).
+        ``τ_l = d_uv/c0 + b_uv + δ_l`` (the signal model of :doc:`/guide/design`).
     gains : [n_paths_total], complex128
         Complex path gains ``α_l`` [√W]: ``|α_l|²`` is the received power of path l.
     offsets : [n_links + 1], int64

@@ -1,6 +1,6 @@
 """Received OFDM signals of a batch of multipath links (DiPNet eq. (6)).
 
-In the frequency domain (DESIGN.md, signal model)
+In the frequency domain (the signal model of :doc:`/guide/design`)
 
 .. math:: R_n = S_n \\sum_l α_l e^{-jωnτ_l} + W_n, \\qquad W_n \\sim \\mathcal{CN}(0, σ^2),
 
@@ -86,7 +86,7 @@ def synthesize(
     tx_index=None,
     noise_var=None,
 ) -> np.ndarray:
-    """Frequency-domain received symbols of every link (DiPNet eq. (6), DESIGN.md signal model).
+    """Frequency-domain received symbols of every link (DiPNet eq. (6)).
 
     Parameters
     ----------

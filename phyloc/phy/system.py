@@ -1,6 +1,6 @@
 """The OFDM system and the link budget.
 
-Signal model (DESIGN.md; DiPNet §II-B, DiPNet eq. (5)): subcarriers
+Signal model (:doc:`/guide/design`; DiPNet §II-B, DiPNet eq. (5)): subcarriers
 ``n = -(N-1)/2 … (N-1)/2`` with N odd and spacing ``f_sc``, ``ω = 2π f_sc``, bandwidth
 ``B = N f_sc``, time samples at ``T = 1/(os·N·f_sc)``. The thermal noise power in the band is
 ``σ² = k·T_K·B·NF``.

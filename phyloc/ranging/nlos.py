@@ -18,7 +18,7 @@ Only samples above the detection threshold (``noise_factor`` times the noise flo
 noise alone never lowers κ: at low SNR only the strongest lobe is seen and κ stays near 1 (no
 link is rejected that the detection test keeps), while at high SNR every path is seen and κ
 approaches its noise-free value. The feature therefore becomes *more* reliable as the SNR rises,
-which is what a two-step filter needs when every biased NLOS range is detected (issue: accuracy
+which is what a two-step filter needs when every biased NLOS range is detected (its accuracy
 must not fall as the power rises).
 
 References

@@ -8,7 +8,7 @@ Model
 
     with ``L + 1 = n_paths`` paths at distances ``d_l = c0 τ_l``. Maximizing the likelihood of R
     (white W) is least squares in c weighted by ``1/|S_n|²``; for constant-modulus pilots this is
-    exactly the brief's channel-estimate form ``y_n = R_n/S_n = Σ α_l e^{−jωnτ_l} + noise``.
+    exactly the channel-estimate form ``y_n = R_n/S_n = Σ α_l e^{−jωnτ_l} + noise``.
     Working on c keeps zero or uneven pilots harmless and reuses the correlation machinery:
     ``F_x(d) = Σ_n x_n e^{−jωnd/c0}`` is the correlation function of a spectrum x.
 
