@@ -19,9 +19,8 @@ result. Schemes (the ``<scheme>`` of the figure names):
                       Q² joint grid, evaluated exhaustively (one "iteration"; per agent = total/2)
 ``sampled``           one weighting sweep of the sample-based exchange: neighbours' particle
                       sets through the direct likelihood of DiPNet eq. (22) in its peak-mixture
-                      form (:class:`~phyloc.localization.direct.sampled_exchange.SampledLikelihood` over
-                      :class:`~phyloc.localization.direct.likelihoods.MarginalDirectLikelihood`, the
-                      likelihood of ``dpe_sampled``)
+                      form (``SampledLikelihood`` over ``MarginalDirectLikelihood`` of
+                      :mod:`phyloc.localization.direct`, the likelihood of ``dpe_sampled``)
 ``el``                one weighting sweep of the EL, DiPNet eqs. (25)–(26), from the neighbours'
                       moments (:class:`~phyloc.localization.direct.likelihoods.DirectLikelihood`)
 ``dipnet_published``  a full agent-iteration of the registered method (DiPNet Algorithm 1)
@@ -29,8 +28,8 @@ result. Schemes (the ``<scheme>`` of the figure names):
                       steps and Metropolis–Hastings moves re-evaluate the likelihood)
 
 Floats exchanged per link and iteration are read off the arrays the implementation passes:
-a :class:`~phyloc.localization.direct.sampled_exchange.NodeBeliefs` row (``Q·(dim + 1)``: points and log
-weights, plus any per-node scalar it carries) for ``sampled``, the published mean and
+a :class:`~phyloc.localization.direct.sampled_exchange.NodeBeliefs` row (``Q·(dim + 1)``:
+points and log weights, plus any per-node scalar it carries) for ``sampled``, the published mean and
 covariance (``dim + dim(dim + 1)/2``, the covariance being symmetric) for the moment exchange,
 the joint table (``Q^|M|``) for ``exact``; bytes are 8 per float (float64).
 

@@ -537,7 +537,7 @@ def cmd_evaluate(args) -> int:
     }
     verify_s = None
     if recipe is None and not args.no_verify:  # never compute on corrupt waveforms
-        from phyloc.datasets.reader import check_shard_files
+        from phyloc.datasets.integrity import check_shard_files
 
         checked = check_shard_files(source)
         verify_s = checked["seconds"]

@@ -72,13 +72,13 @@ def test_kind_is_checked_against_the_registry():
     from phyloc.evaluation.kinds import load_recipe as load_checked
 
     text = GOOD.replace('kind = "ranging"', 'kind = "dance"')
-    with pytest.raises(ValidationError, match="kind = dance .*one of ranging, localization"):
+    with pytest.raises(ValidationError, match=r"kind = dance .*one of ranging, localization"):
         load_checked(text)
     assert load_recipe(text).kind == "dance"
     with pytest.raises(ValidationError, match="evaluate runs ranging, localization"):
         experiment_for("dance")
     assert all(experiment_for(k).kind == k for k in EXPERIMENTS)
-    with pytest.raises(ValidationError, match="kind = 3 .*a recipe kind"):
+    with pytest.raises(ValidationError, match=r"kind = 3 .*a recipe kind"):
         load_recipe(GOOD.replace('kind = "ranging"', "kind = 3"))
 
 
@@ -124,7 +124,7 @@ def test_a_recipe_built_in_code_is_written_as_loadable_text():
     import tomllib
 
     from phyloc.config import parse_recipe
-    from phyloc.datasets.writer import plan_dataset
+    from phyloc.datasets.plan import plan_dataset
 
     text = (
         'kind = "dataset"\nname = "d"\nseed = 3\n[system]\nn_subcarriers = 65\n'

@@ -14,8 +14,8 @@ import pytest
 
 import phyloc.datasets as pds
 from phyloc.datasets import schema as sc
-from phyloc.datasets.reader import check_shard_files
-from phyloc.datasets.writer import CRASH_ENV
+from phyloc.datasets.integrity import check_shard_files
+from phyloc.datasets.shard import CRASH_ENV
 from phyloc.errors import PhylocError, ValidationError
 from phyloc.parallel import task_seeds
 from phyloc.phy.correlation import correlation_tables

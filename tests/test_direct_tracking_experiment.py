@@ -9,8 +9,8 @@ import pytest
 
 from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
-from phyloc.evaluation.experiment import experiment_from_dict
 from phyloc.evaluation import direct_tracking_experiment as dt
+from phyloc.evaluation.experiment import experiment_from_dict
 from phyloc.network import make_network, pentagon
 
 DATASETS = Path(__file__).resolve().parents[1] / "datasets"

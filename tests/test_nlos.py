@@ -16,9 +16,9 @@ import pytest
 from phyloc.errors import ValidationError
 from phyloc.evaluation.metrics import framework_distance_errors
 from phyloc.localization.direct import DirectOptions, LinkMeasurements, LinkRanges
+from phyloc.localization.direct.likelihoods import GaussianRangeLikelihood
 from phyloc.localization.direct.method import link_likelihood
 from phyloc.localization.initialization import coarse_positions
-from phyloc.localization.direct.likelihoods import GaussianRangeLikelihood
 from phyloc.phy import C0, OFDMSystem, PathSet
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize

@@ -15,8 +15,8 @@ from test_dpf import ANCHORS, agent_map, awgn_network, gaussian_prior
 
 from phyloc.errors import ValidationError
 from phyloc.localization import METHODS
-from phyloc.localization.direct import _sampled_kernels as K
 from phyloc.localization.direct import DirectOptions, DPFOptions, LinkMeasurements, LinkRanges
+from phyloc.localization.direct import _sampled_kernels as K
 from phyloc.localization.direct import run as run_direct
 from phyloc.localization.direct.likelihoods import (
     DirectLikelihood,

@@ -10,8 +10,8 @@ import pytest
 from phyloc.cli import main
 from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
-from phyloc.evaluation.experiment import experiment_from_dict
 from phyloc.evaluation import static_experiment as se
+from phyloc.evaluation.experiment import experiment_from_dict
 from phyloc.localization.static.ellipses import EllipseRegion
 
 DATASETS = Path(__file__).resolve().parents[1] / "datasets"
@@ -200,7 +200,9 @@ def test_sample_sweep_topologies_limits_the_sweep_only(tiny):
         load_recipe(TINY.replace("topologies = 2", "topologies = 2\nsample_sweep_topologies = 1")),
         progress=False,
     )
-    one = se.STATIC.run(load_recipe(TINY.replace("topologies = 2", "topologies = 1")), progress=False)
+    one = se.STATIC.run(
+        load_recipe(TINY.replace("topologies = 2", "topologies = 1")), progress=False
+    )
     f = limited["figures"]
     swept = [n for n in f if n.startswith(("poa_nbp.ns20.", "poa_nbp.ns40."))]
     assert "poa_nbp.ns20.mean_error_m" in swept

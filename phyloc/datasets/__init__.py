@@ -48,19 +48,19 @@ P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEE
 Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 
 WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
-updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+updated 2008; the table each value of the shipped channel files comes from is given in
+``channels/PROVENANCE.md``.
 """
 
 from phyloc.datasets.importer import export_arrays, import_arrays
-from phyloc.datasets.reader import (
-    Dataset,
-    Snapshot,
-    info,
-    open,
-    open_dataset,
-    open_xarray,
-    verify,
+from phyloc.datasets.integrity import verify
+from phyloc.datasets.plan import (
+    DatasetPlan,
+    plan_dataset,
+    realization_seed,
+    simulate_recipe_realization,
 )
+from phyloc.datasets.reader import Dataset, Snapshot, info, open, open_dataset, open_xarray
 from phyloc.datasets.schema import (
     SCHEMA_VERSION,
     DatasetBusyError,
@@ -72,13 +72,7 @@ from phyloc.datasets.schema import (
 )
 from phyloc.datasets.simulate import Realization, simulate_realization
 from phyloc.datasets.spec import DatasetSpec
-from phyloc.datasets.writer import (
-    DatasetPlan,
-    generate,
-    plan_dataset,
-    realization_seed,
-    simulate_recipe_realization,
-)
+from phyloc.datasets.writer import generate
 
 __all__ = [
     "SCHEMA_VERSION",

@@ -1,4 +1,4 @@
-"""Reading waveform datasets: lazy arrays, snapshots for localizers, ``info`` and ``verify``.
+"""Reading waveform datasets: lazy arrays, snapshots for localizers, ``info``.
 
 Typical use (the package docstring of :mod:`phyloc.datasets` has a runnable example)::
 
@@ -10,6 +10,8 @@ Typical use (the package docstring of :mod:`phyloc.datasets` has a runnable exam
 Every array of the schema (``datasets/README.md``) is available lazily as an ``h5py.Dataset``
 (``ds["received"]``, ``ds.arrays``); :meth:`Dataset.snapshot` and :meth:`Dataset.realization`
 read what one snapshot or one realization needs, and the iterators walk them in order.
+:func:`info` summarizes a dataset; checking its integrity (``verify``) is
+:mod:`phyloc.datasets.integrity`.
 
 References
 ----------
@@ -21,7 +23,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import time
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -472,7 +473,6 @@ def open_dataset(path) -> Dataset:
     return Dataset(path)
 
 
-#: ``phyloc.datasets.open`` (the name the package exports).
 def open_xarray(path):
     """The dataset's master file as an :class:`xarray.DataTree` with named dimensions.
 
@@ -511,6 +511,7 @@ def open_xarray(path):
     return xarray.open_datatree(path, engine="h5netcdf", decode_timedelta=False)
 
 
+#: ``phyloc.datasets.open`` (the name the package exports).
 open = open_dataset
 
 
@@ -531,8 +532,9 @@ def info(path, *, verify: bool = False) -> dict:
     path : str or Path
         The master file.
     verify : bool
-        Also check every shard (:func:`verify_dataset`): its file checksum against the
-        master's record and the SHA-256 of every array; adds the keys of that function.
+        Also check every shard (:func:`~phyloc.datasets.integrity.verify_dataset`): its
+        file checksum against the master's record and the SHA-256 of every array; adds the
+        keys of that function.
 
     Returns
     -------
@@ -591,129 +593,20 @@ def info(path, *, verify: bool = False) -> dict:
             "bytes": _disk_bytes(ds),
         }
     if verify:
+        from phyloc.datasets.integrity import verify_dataset
+
         out.update(verify_dataset(path))
     return out
 
 
-def check_master(ds: Dataset) -> str | None:
-    """What is wrong with an open dataset's master file itself, or None: an expected array,
-    group or dimension scale missing, or content that differs from the master's own SHA-256
-    (:func:`~phyloc.datasets.schema.master_digest`; files before schema 1.1 have none)."""
-    f = ds.file
-    for name in (*ds.array_names, "system", "shards"):
-        if name not in f:
-            return f"master: {name} is missing"
-    stored = sc._text(f.attrs.get(sc.MASTER_DIGEST_ATTR, ""))
-    if not stored:
-        version = tuple(int(x) for x in ds.schema_version.split(".")[:2])
-        return None if version < (1, 1) else "master: its content checksum is missing"
-    if sc.master_digest(f) != stored:
-        return "master: content differs from its SHA-256 (altered or corrupt)"
-    return None
+#: The integrity checks moved to :mod:`phyloc.datasets.integrity`; importing them from here
+#: still works.
+_MOVED = frozenset({"check_master", "check_shard_files", "verify", "verify_dataset"})
 
 
-def verify_dataset(path) -> dict:
-    """Check every shard of a dataset completely (``phyloc info --verify``).
+def __getattr__(name):
+    if name in _MOVED:
+        from phyloc.datasets import integrity
 
-    A shard is sound when its file exists, its SHA-256 equals the master's record, it belongs
-    to this dataset (recipe fingerprint, realization range) and every array's SHA-256 matches
-    its data. Truncated and bit-flipped shards are reported as corrupt;
-    ``phyloc generate ... --resume`` regenerates corrupt and missing shards.
-
-    Returns
-    -------
-    dict
-        ``verified`` (True), ``ok`` (every shard complete and sound), ``shards_ok``,
-        ``missing_shards`` (not complete in the master, or file absent), ``corrupt_shards``
-        (lists of shard indices) and ``problems`` (shard index → reason).
-    """
-    with open_dataset(path) as ds, _master_read(ds.path):
-        fp = sc._text(ds.file.attrs["recipe_fingerprint"])
-        arrays = [sc.spec_of(n) for n in ds.array_names]
-        sh = ds.shards
-        missing, corrupt, problems, ok = [], [], {}, 0
-        master = check_master(ds)
-        if master:
-            problems["master"] = master
-        for j in range(ds.n_shards):
-            file = ds.path.parent / sh["file"][j]
-            if not sh["complete"][j]:
-                missing.append(j)
-                problems[j] = "not complete (generation unfinished or failed)"
-                continue
-            rec, kind, reason = sc.check_shard(
-                file,
-                index=j,
-                start=int(sh["realization_start"][j]),
-                stop=int(sh["realization_stop"][j]),
-                fingerprint=fp,
-                arrays=arrays,
-                file_sha256=sh["file_sha256"][j],
-            )
-            if rec is not None:
-                ok += 1
-                continue
-            (missing if kind == "missing" else corrupt).append(j)
-            problems[j] = reason
-    return {
-        "verified": True,
-        "ok": not missing and not corrupt and not master,
-        "master_ok": not master,
-        "shards_ok": ok,
-        "missing_shards": missing,
-        "corrupt_shards": corrupt,
-        "problems": problems,
-    }
-
-
-def check_shard_files(path) -> dict:
-    """Check, before reading a dataset, that every shard is complete and that its file's
-    SHA-256 equals the master's record (what ``phyloc evaluate`` does unless ``--no-verify``).
-
-    Lighter than :func:`verify_dataset` (one pass over each shard's bytes, no per-array
-    hashes), and enough to refuse a flipped bit or a truncated shard anywhere.
-
-    Returns
-    -------
-    dict
-        ``shards`` (how many were checked), ``bytes`` (their size) and ``seconds``.
-
-    Raises
-    ------
-    DatasetError
-        The first shard that is not complete, is missing or differs from its checksum, named,
-        with the command that repairs it.
-    """
-    t0 = time.perf_counter()
-    n_bytes = 0
-    with open_dataset(path) as ds:
-        sh = ds.shards
-        with _master_read(ds.path):
-            master = check_master(ds)
-        if master:
-            raise sc.DatasetError(
-                f"dataset {ds.path}: {master}; `phyloc generate RECIPE -o {ds.path} --resume` "
-                "rebuilds the master from its shards"
-            )
-        repair = f"run `phyloc info {ds.path} --verify` to list every problem and "
-        repair += "`phyloc generate RECIPE -o DATASET --resume` to regenerate the shard"
-        for j in range(ds.n_shards):
-            file = ds.path.parent / sh["file"][j]
-            if not sh["complete"][j]:
-                raise sc.DatasetError(
-                    f"dataset {ds.path}: shard {j} ({sh['file'][j]}) is not complete; {repair}"
-                )
-            if not file.is_file():
-                raise sc.DatasetError(f"dataset {ds.path}: shard {j} ({file}) is missing; {repair}")
-            if sc.sha256_file(file) != sh["file_sha256"][j]:
-                raise sc.DatasetError(
-                    f"dataset {ds.path}: shard {j} ({sh['file'][j]}) differs from its SHA-256 "
-                    f"in the master (corrupt or truncated); {repair}"
-                )
-            n_bytes += file.stat().st_size
-        n = ds.n_shards
-    return {"shards": n, "bytes": n_bytes, "seconds": time.perf_counter() - t0}
-
-
-#: ``phyloc.datasets.verify``.
-verify = verify_dataset
+        return getattr(integrity, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

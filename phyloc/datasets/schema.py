@@ -114,6 +114,13 @@ class ArraySpec:
         """Shape for given dimension sizes (keys: the axis names)."""
         return tuple(int(dims[a]) for a in self.axes)
 
+    def annotate(self, dset) -> None:
+        """Write the array's ``units``, ``axes`` and ``description`` attributes on ``dset``
+        (an ``h5py.Dataset`` of a shard or of the master)."""
+        dset.attrs["units"] = self.units
+        dset.attrs["axes"] = ",".join(self.axes)
+        dset.attrs["description"] = self.description
+
 
 _PER_LINK = ("realization", "snapshot", "link")
 

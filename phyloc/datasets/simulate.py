@@ -13,7 +13,8 @@ P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEE
 Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 
 WINNER II: IST-4-027756 WINNER II Deliverable D1.1.2 V1.2, Part I (channel models), 2007,
-updated 2008; the tables as transcribed in ``shared/reference/winner2/``.
+updated 2008; the table each value of the shipped channel files comes from is given in
+``channels/PROVENANCE.md``.
 """
 
 from __future__ import annotations

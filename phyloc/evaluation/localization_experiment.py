@@ -471,7 +471,7 @@ def check_dataset_recipe(recipe) -> None:
     """Validate the sections of a dataset recipe that only ``phyloc evaluate`` reads
     (``[experiment]``, ``[ranging]``, ``[localization]``), so ``phyloc generate`` fails before
     hours of work instead of ``evaluate`` after them."""
-    from phyloc.datasets.writer import plan_dataset
+    from phyloc.datasets.plan import plan_dataset
 
     plan = plan_dataset(recipe)
     dataset_specs(plan.recipe, plan.network.n_agents, plan.dataset.realizations)

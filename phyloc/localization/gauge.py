@@ -1,4 +1,4 @@
-"""Uninformative anchor-free gauge priors (issue 5: kept to show DiPNet's collapse).
+"""Uninformative anchor-free gauge priors (kept to show DiPNet's collapse from them).
 
 An anchor-free network is determined only up to a rigid transform; :func:`gauge_priors` remove
 the gauge freedom by convention (agent 0 at the origin, agent 1 on the positive x-axis, agent 2
@@ -36,7 +36,7 @@ def _dim(dim) -> int:
 
 
 def gauge_priors(n_agents, dim, Q, extent_m, rng) -> np.ndarray:
-    """Uninformative anchor-free gauge priors (issue 5: kept to show DiPNet's collapse).
+    """Uninformative anchor-free gauge priors (kept to show DiPNet's collapse from them).
 
     An anchor-free network is determined only up to a rigid transform; these priors remove the
     gauge freedom by convention, with support (``e = extent_m``):

@@ -1,8 +1,9 @@
 """Initialization of the particle filters: the truth-free coarse solution of the network.
 
 DiPNet Algorithm 1 draws each agent's Q particles once from its *a priori* pdf, which the
-paper does not state. Run from uninformative priors the filter collapses (issue 5), so phyloc
-offers three initializations, each labelled as such wherever results are reported:
+paper does not state. Run from uninformative priors the filter collapses (the ``gauge``
+initialization of the localization recipes shows it), so phyloc offers three
+initializations, each labelled as such wherever results are reported:
 
 truth-free (default; this module)
     :func:`coarse_positions` solves the network coarsely from estimated ranges alone — the

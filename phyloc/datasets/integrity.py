@@ -1,0 +1,150 @@
+"""Integrity of a waveform dataset: the master's own checksum and every shard's checksums.
+
+A dataset is sound when its master holds what it should and matches its own SHA-256
+(:func:`check_master`) and every shard is complete, present, belongs to the dataset and
+matches its checksums. :func:`verify_dataset` (``phyloc info --verify``,
+``phyloc.datasets.verify``) checks all of it and lists every problem;
+:func:`check_shard_files` (what ``phyloc evaluate`` runs before reading) checks each shard
+file's SHA-256 against the master's record in one pass over its bytes and stops at the first
+problem, naming the command that repairs it. Checksums are those of
+:mod:`phyloc.datasets.schema`.
+
+References
+----------
+The HDF Group, *HDF5 User's Guide*, https://docs.hdfgroup.org/; the h5py documentation,
+https://docs.h5py.org/; NIST FIPS 180-4, *Secure Hash Standard* (SHA-256), 2015.
+"""
+
+from __future__ import annotations
+
+import time
+
+from phyloc.datasets import schema as sc
+from phyloc.datasets.reader import Dataset, _master_read, open_dataset
+
+
+def check_master(ds: Dataset) -> str | None:
+    """What is wrong with an open dataset's master file itself, or None: an expected array,
+    group or dimension scale missing, or content that differs from the master's own SHA-256
+    (:func:`~phyloc.datasets.schema.master_digest`; files before schema 1.1 have none)."""
+    f = ds.file
+    for name in (*ds.array_names, "system", "shards"):
+        if name not in f:
+            return f"master: {name} is missing"
+    stored = sc._text(f.attrs.get(sc.MASTER_DIGEST_ATTR, ""))
+    if not stored:
+        version = tuple(int(x) for x in ds.schema_version.split(".")[:2])
+        return None if version < (1, 1) else "master: its content checksum is missing"
+    if sc.master_digest(f) != stored:
+        return "master: content differs from its SHA-256 (altered or corrupt)"
+    return None
+
+
+def verify_dataset(path) -> dict:
+    """Check every shard of a dataset completely (``phyloc info --verify``).
+
+    A shard is sound when its file exists, its SHA-256 equals the master's record, it belongs
+    to this dataset (recipe fingerprint, realization range) and every array's SHA-256 matches
+    its data. Truncated and bit-flipped shards are reported as corrupt;
+    ``phyloc generate ... --resume`` regenerates corrupt and missing shards.
+
+    Returns
+    -------
+    dict
+        ``verified`` (True), ``ok`` (every shard complete and sound), ``shards_ok``,
+        ``missing_shards`` (not complete in the master, or file absent), ``corrupt_shards``
+        (lists of shard indices) and ``problems`` (shard index → reason).
+    """
+    with open_dataset(path) as ds, _master_read(ds.path):
+        fp = sc._text(ds.file.attrs["recipe_fingerprint"])
+        arrays = [sc.spec_of(n) for n in ds.array_names]
+        sh = ds.shards
+        missing, corrupt, problems, ok = [], [], {}, 0
+        master = check_master(ds)
+        if master:
+            problems["master"] = master
+        for j in range(ds.n_shards):
+            file = ds.path.parent / sh["file"][j]
+            if not sh["complete"][j]:
+                missing.append(j)
+                problems[j] = "not complete (generation unfinished or failed)"
+                continue
+            rec, kind, reason = sc.check_shard(
+                file,
+                index=j,
+                start=int(sh["realization_start"][j]),
+                stop=int(sh["realization_stop"][j]),
+                fingerprint=fp,
+                arrays=arrays,
+                file_sha256=sh["file_sha256"][j],
+            )
+            if rec is not None:
+                ok += 1
+                continue
+            (missing if kind == "missing" else corrupt).append(j)
+            problems[j] = reason
+    return {
+        "verified": True,
+        "ok": not missing and not corrupt and not master,
+        "master_ok": not master,
+        "shards_ok": ok,
+        "missing_shards": missing,
+        "corrupt_shards": corrupt,
+        "problems": problems,
+    }
+
+
+def check_shard_files(path) -> dict:
+    """Check, before reading a dataset, that every shard is complete and that its file's
+    SHA-256 equals the master's record (what ``phyloc evaluate`` does unless ``--no-verify``).
+
+    Lighter than :func:`verify_dataset` (one pass over each shard's bytes, no per-array
+    hashes), and enough to refuse a flipped bit or a truncated shard anywhere.
+
+    Returns
+    -------
+    dict
+        ``shards`` (how many were checked), ``bytes`` (their size) and ``seconds``.
+
+    Raises
+    ------
+    DatasetError
+        The first shard that is not complete, is missing or differs from its checksum, named,
+        with the command that repairs it.
+    """
+    t0 = time.perf_counter()
+    n_bytes = 0
+    with open_dataset(path) as ds:
+        sh = ds.shards
+        with _master_read(ds.path):
+            master = check_master(ds)
+        if master:
+            raise sc.DatasetError(
+                f"dataset {ds.path}: {master}; `phyloc generate RECIPE -o {ds.path} --resume` "
+                "rebuilds the master from its shards"
+            )
+        repair = f"run `phyloc info {ds.path} --verify` to list every problem and "
+        repair += "`phyloc generate RECIPE -o DATASET --resume` to regenerate the shard"
+        for j in range(ds.n_shards):
+            file = ds.path.parent / sh["file"][j]
+            if not sh["complete"][j]:
+                raise sc.DatasetError(
+                    f"dataset {ds.path}: shard {j} ({sh['file'][j]}) is not complete; {repair}"
+                )
+            if not file.is_file():
+                raise sc.DatasetError(f"dataset {ds.path}: shard {j} ({file}) is missing; {repair}")
+            if sc.sha256_file(file) != sh["file_sha256"][j]:
+                raise sc.DatasetError(
+                    f"dataset {ds.path}: shard {j} ({sh['file'][j]}) differs from its SHA-256 "
+                    f"in the master (corrupt or truncated); {repair}"
+                )
+            n_bytes += file.stat().st_size
+        n = ds.n_shards
+    return {"shards": n, "bytes": n_bytes, "seconds": time.perf_counter() - t0}
+
+
+#: ``phyloc.datasets.verify``.
+verify = verify_dataset
+
+
+__all__ = ["check_master", "check_shard_files", "verify", "verify_dataset"]
