@@ -16,7 +16,7 @@ M. S. Arulampalam, S. Maskell, N. Gordon, T. Clapp, "A tutorial on particle filt
 nonlinear/non-Gaussian Bayesian tracking," IEEE Trans. SP 50(2), 2002 (effective sample size).
 PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
 cooperative localization and navigation with embedded particle flow."
-(Eq. (32), regularization by Gaussian jitter.)
+(PF-BP eq. (32), regularization by Gaussian jitter.)
 """
 
 from __future__ import annotations
