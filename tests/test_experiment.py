@@ -45,6 +45,9 @@ class Toy(Experiment):
     def meta(self, plan, ctx):
         return {"units": plan.units}
 
+    def plot(self, results, path):
+        pass
+
 
 TOY = """
 kind = "toy"
@@ -89,6 +92,17 @@ def test_experiment_from_dict_reads_fast_over_full():
     spec = experiment_from_dict(ToySpec, {"units": 5, "fast": {"scale": 2.0}}, fast=True)
     assert spec == ToySpec(units=5, scale=2.0)
     assert experiment_from_dict(ToySpec, {"units": 5, "fast": {"scale": 2.0}}) == ToySpec(5, 1.0)
+
+
+def test_an_experiment_must_implement_the_shape():
+    class Half(Experiment):
+        kind = "half"
+
+        def prepare(self, recipe, *, fast=False):
+            return None
+
+    with pytest.raises(TypeError, match="abstract"):
+        Half()
 
 
 def test_registry_is_the_one_list_of_kinds():

@@ -25,8 +25,8 @@ from phyloc.datasets import schema as sc
 
 
 def temp_path(final) -> Path:
-    """A unique temporary name next to ``final``: ``.NAME.tmp-PID-XXXXXXXX`` (hidden, in the
-    same folder, so that the rename stays on one filesystem)."""
+    """A unique temporary name next to ``final``: ``.NAME.tmp-<pid>-<8 random hex digits>``
+    (hidden, in the same folder, so that the rename stays on one filesystem)."""
     final = Path(final)
     return final.with_name(f".{final.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}")
 

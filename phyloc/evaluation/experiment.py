@@ -31,6 +31,7 @@ https://distributed.dask.org (the task scheduler behind :func:`phyloc.parallel.r
 
 from __future__ import annotations
 
+import abc
 import dataclasses
 from collections.abc import Callable
 from typing import ClassVar
@@ -79,7 +80,7 @@ def experiment_from_dict(cls, table: dict, *, fast: bool = False):
     return cls(**table)
 
 
-class Experiment:
+class Experiment(abc.ABC):
     """Base of every experiment kind (template method: :meth:`run` is the runner).
 
     A subclass sets :attr:`kind`, :attr:`title`, :attr:`unit`, :attr:`task` and implements
@@ -105,25 +106,25 @@ class Experiment:
         (unknown keys and wrong types are errors naming ``experiment.<key>``)."""
         return experiment_from_dict(self.spec, recipe.section("experiment"), fast=fast)
 
+    @abc.abstractmethod
     def prepare(self, recipe, *, fast: bool = False):
         """Validate everything the run reads from ``recipe`` and return the plan; no work."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def tasks(self, plan) -> list[tuple]:
         """``[(key, payload), …]``: the units of work, in the order their seeds are spawned."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def aggregate(self, plan, keys: list, results: list, ctx: RunContext) -> tuple[dict, dict]:
         """``(figures, series)`` pooled from the task results (``keys[i]`` of ``results[i]``)."""
-        raise NotImplementedError
 
     def meta(self, plan, ctx: RunContext) -> dict:
         """What a reader needs to interpret the figures (beyond recipe, kind, seed, fast)."""
         return {}
 
+    @abc.abstractmethod
     def plot(self, results: dict, path) -> None:
         """Write the experiment's figure(s) to ``path`` (a PNG; further figures beside it)."""
-        raise NotImplementedError
 
     def summary_rows(self, results: dict) -> list:
         """Rows of the table ``phyloc evaluate`` prints."""

@@ -51,6 +51,7 @@ cooperative localization and navigation with embedded particle flow."
 
 from __future__ import annotations
 
+import abc
 import time
 from dataclasses import dataclass
 
@@ -86,7 +87,7 @@ class Belief:
     joint: bool = False
 
 
-class Update:
+class Update(abc.ABC):
     """What a tracker supplies to the loop: its beliefs at time 0 and its update of one step.
 
     Subclasses set :attr:`label` (and :attr:`distributed`) and implement :meth:`initial`,
@@ -116,22 +117,22 @@ class Update:
         """Message-passing iterations per time step (``Timing.agent_iterations``): ``U``."""
         return getattr(self.options, "n_iterations", 1)
 
+    @abc.abstractmethod
     def initial(self, mean0: np.ndarray, cov0: np.ndarray, rng) -> Belief:
         """Beliefs at time 0 from the prior ``mean0 [n_agents, N_D]``, ``cov0`` (copies)."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def update(self, pred: Belief, z_k: np.ndarray, anchors_k: np.ndarray, rng) -> Belief:
         """Update the predicted beliefs by one step's ranges ``z_k`` with anchors at
         ``anchors_k``."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def estimate(self, belief: Belief) -> tuple[np.ndarray, np.ndarray]:
         """``(mean [n_agents, N_D], cov [n_agents, N_D, N_D])``, new arrays."""
-        raise NotImplementedError
 
+    @abc.abstractmethod
     def floats_per_link_iteration(self) -> float:
         """What one agent sends a neighbour per iteration (:func:`message_floats`)."""
-        raise NotImplementedError
 
 
 class Tracker:
