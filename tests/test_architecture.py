@@ -25,6 +25,7 @@ LAYERS = [
     ["phyloc.localization"],
     ["phyloc.control", "phyloc.datasets"],
     ["phyloc.evaluation"],
+    ["phyloc.commands"],
     ["phyloc.cli"],
 ]
 FAMILIES = ["direct", "tracking", "static"]

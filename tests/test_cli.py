@@ -102,11 +102,11 @@ def test_generate_info_and_verify_from_the_command_line(tmp_path, capsys, monkey
 def test_quickstart_hands_complete_arguments_to_generate_and_evaluate(tmp_path, monkeypatch):
     """quickstart calls the two sub-commands with every option they read (a Namespace built by
     hand once lacked ``--plugin`` and crashed the README's main command)."""
-    from phyloc import cli
+    from phyloc import cli, commands
 
     seen = {}
-    monkeypatch.setattr(cli, "cmd_generate", lambda a: seen.setdefault("generate", a))
-    monkeypatch.setattr(cli, "cmd_evaluate", lambda a: seen.setdefault("evaluate", a) and 0)
+    monkeypatch.setattr(commands, "cmd_generate", lambda a: seen.setdefault("generate", a))
+    monkeypatch.setattr(commands, "cmd_evaluate", lambda a: seen.setdefault("evaluate", a) and 0)
     assert main(["quickstart", "--dir", str(tmp_path), "--workers", "2", "--no-progress"]) == 0
     parser = cli.build_parser()
     ref_gen = parser.parse_args(["generate", "r.toml", "-o", "o.h5"])

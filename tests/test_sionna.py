@@ -4,7 +4,8 @@ signal. Runs where Sionna is installed (``pip install "phyloc[sionna]"``), skipp
 import numpy as np
 import pytest
 
-from phyloc.cli import _import_benchmark, main
+from phyloc.cli import main
+from phyloc.commands import _import_benchmark
 from phyloc.phy.synthesis import synthesize
 
 # the installed package (phyloc.benchmarks) or, when phyloc is the working tree, ./benchmarks

@@ -11,6 +11,7 @@ from phyloc.cli import main
 from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation import static_experiment as se
+from phyloc.evaluation import static_figures
 from phyloc.evaluation.experiment import experiment_from_dict
 from phyloc.localization.static.ellipses import EllipseRegion
 
@@ -184,8 +185,8 @@ def test_ellipse_region_is_uniform():
 
 def test_same_results_with_one_and_two_workers(tiny):
     two = se.STATIC.run(load_recipe(TINY), workers=2, progress=False)
-    names = [n for n in tiny["figures"] if not se.is_timing(n)]
-    assert names == [n for n in two["figures"] if not se.is_timing(n)]
+    names = [n for n in tiny["figures"] if not static_figures.is_timing(n)]
+    assert names == [n for n in two["figures"] if not static_figures.is_timing(n)]
     assert "poa_nbp.mean_error_m" in names and "poa.time_per_node_s" not in names
     for n in names:
         assert tiny["figures"][n] == two["figures"][n], n
@@ -208,7 +209,7 @@ def test_sample_sweep_topologies_limits_the_sweep_only(tiny):
     assert "poa_nbp.ns20.mean_error_m" in swept
     assert f["poa_nbp.ns20.topologies"] == 1.0 and tiny["figures"]["poa_nbp.ns20.topologies"] == 2
     for n in f:
-        if se.is_timing(n) or n.endswith("topologies"):
+        if static_figures.is_timing(n) or n.endswith("topologies"):
             continue
         # N_S = 40 is also the comparison's: its overhead figures come from the comparison
         from_sweep = n in swept and not (n.startswith("poa_nbp.ns40.") and n.endswith(_OVERHEAD))

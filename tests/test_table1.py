@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from phyloc.cli import _import_benchmark
+from phyloc.commands import _import_benchmark
 from phyloc.errors import ValidationError
 from phyloc.localization.direct.sampled_exchange import NodeBeliefs
 

@@ -10,6 +10,8 @@ import pytest
 from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation import tracking_experiment as te
+from phyloc.evaluation import tracking_scenarios
+from phyloc.evaluation.tracking_figures import is_timing
 
 DATASETS = Path(__file__).resolve().parents[1] / "datasets"
 
@@ -135,8 +137,8 @@ def test_same_results_with_one_and_two_workers():
     recipe = load_recipe(TINY)
     one = te.TRACKING.run(recipe, workers=1, progress=False)
     two = te.TRACKING.run(recipe, workers=2, progress=False)
-    names = [n for n in one["figures"] if not te.is_timing(n)]
-    assert names == [n for n in two["figures"] if not te.is_timing(n)]
+    names = [n for n in one["figures"] if not is_timing(n)]
+    assert names == [n for n in two["figures"] if not is_timing(n)]
     assert any(n.startswith("sirbp.") for n in names)
     for n in names:
         assert one["figures"][n] == two["figures"][n], n
@@ -222,10 +224,10 @@ def test_residual_sigma_is_the_range_noise_scale():
     u, w = np.nonzero(~np.eye(pos.shape[0], dtype=bool) & ~is_anchor[:, None])
     links = np.stack([u, w], axis=1)
     d = np.linalg.norm(pos[u] - pos[w], axis=1)
-    assert te._residual_sigma(net, (links, d), dim=2) < 1e-3
-    sigma = te._residual_sigma(net, (links, d + rng.normal(0, 0.5, d.size)), dim=2)
+    assert tracking_scenarios.residual_sigma(net, (links, d), dim=2) < 1e-3
+    sigma = tracking_scenarios.residual_sigma(net, (links, d + rng.normal(0, 0.5, d.size)), dim=2)
     assert 0.25 < sigma < 0.5
-    assert te._residual_sigma(net, None, dim=2) is None
+    assert tracking_scenarios.residual_sigma(net, None, dim=2) is None
 
 
 def test_a_variant_runs_its_base_method_with_its_own_table():
@@ -249,9 +251,9 @@ def test_a_variant_runs_its_base_method_with_its_own_table():
     assert a["meta"]["bases"] == {"pfbp": "pfbp", "sirbp_small": "sirbp"}
     assert a["meta"]["labels"]["sirbp_small"] == "sirbp_small"
     assert a["meta"]["options"]["sirbp_small"]["n_particles"] == 300
-    fa = {n: x for n, x in a["figures"].items() if not te.is_timing(n)}
+    fa = {n: x for n, x in a["figures"].items() if not is_timing(n)}
     fb = {n.replace("sirbp.", "sirbp_small.", 1): x for n, x in b["figures"].items()}
-    fb = {n.replace("sirbp_over_pfbp", "x"): x for n, x in fb.items() if not te.is_timing(n)}
+    fb = {n.replace("sirbp_over_pfbp", "x"): x for n, x in fb.items() if not is_timing(n)}
     fa = {n.replace("sirbp_over_pfbp", "x"): x for n, x in fa.items()}
     assert fa == fb
     # a variant's table needs a registered base; a registered name cannot be redefined
@@ -352,7 +354,7 @@ def test_method_runs_limits_one_method_and_leaves_the_others_alone():
     assert limited["meta"]["method_runs"] == {"sirbp": 1}
     checked = 0
     for k, val in f.items():
-        if te.is_timing(k) or not k.startswith(("sirbp.", "pfbp.", "spbp.", "edh.")):
+        if is_timing(k) or not k.startswith(("sirbp.", "pfbp.", "spbp.", "edh.")):
             continue
         ref = h[k] if k.startswith("sirbp.") else g[k]
         assert val == pytest.approx(ref, rel=1e-12), k

@@ -53,14 +53,14 @@ updated 2008; the table each value of the shipped channel files comes from is gi
 """
 
 from phyloc.datasets.importer import export_arrays, import_arrays
-from phyloc.datasets.integrity import verify
+from phyloc.datasets.integrity import info, verify
 from phyloc.datasets.plan import (
     DatasetPlan,
     plan_dataset,
     realization_seed,
     simulate_recipe_realization,
 )
-from phyloc.datasets.reader import Dataset, Snapshot, info, open, open_dataset, open_xarray
+from phyloc.datasets.reader import Dataset, Snapshot, open, open_dataset, open_xarray
 from phyloc.datasets.schema import (
     SCHEMA_VERSION,
     DatasetBusyError,

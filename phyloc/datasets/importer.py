@@ -22,8 +22,9 @@ and units:
 Every array may carry a leading realization axis ``R`` (then all per-realization arrays do).
 A missing, mis-shaped or inconsistent array raises :class:`~phyloc.errors.ValidationError`
 naming the array, the shape seen and the shape expected; nothing is written then. The checks
-are the table of :mod:`phyloc.datasets.import_checks` (:func:`check_arrays`, re-exported
-here); this module reads the source, builds the stored recipe and writes the dataset.
+are the table of :mod:`phyloc.datasets.import_checks`
+(:func:`~phyloc.datasets.import_checks.check_arrays`); this module reads the source, builds
+the stored recipe and writes the dataset.
 
 :func:`export_arrays` writes a dataset back to such arrays (realization axis included), so
 ``import_arrays(export_arrays(ds))`` stores the same received samples, pilots, links and
@@ -59,7 +60,7 @@ from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe, dumps_toml, load_recipe
 from phyloc.datasets import schema as sc
 from phyloc.datasets.files import fsync, output_lock, staged
-from phyloc.datasets.import_checks import INPUTS, REQUIRED, CheckedArrays, check_arrays
+from phyloc.datasets.import_checks import CheckedArrays, check_arrays
 from phyloc.datasets.master import write_master
 from phyloc.datasets.plan import DatasetPlan
 from phyloc.datasets.shard import shard_attributes
@@ -546,12 +547,4 @@ def export_arrays(dataset_path, out, *, force: bool = False) -> Path:
     return out
 
 
-__all__ = [
-    "DEFAULT_SCENARIO",
-    "INPUTS",
-    "REQUIRED",
-    "check_arrays",
-    "export_arrays",
-    "import_arrays",
-    "read_arrays",
-]
+__all__ = ["DEFAULT_SCENARIO", "export_arrays", "import_arrays", "read_arrays"]

@@ -1,4 +1,5 @@
-"""Integrity of a waveform dataset: the master's own checksum and every shard's checksums.
+"""Integrity of a waveform dataset: the master's own checksum and every shard's checksums, and
+the summary ``phyloc info`` prints (:func:`info`, with ``verify`` these checks added).
 
 A dataset is sound when its master holds what it should and matches its own SHA-256
 (:func:`check_master`) and every shard is complete, present, belongs to the dataset and
@@ -148,3 +149,85 @@ verify = verify_dataset
 
 
 __all__ = ["check_master", "check_shard_files", "verify", "verify_dataset"]
+
+
+def _disk_bytes(ds: Dataset) -> int:
+    total = ds.path.stat().st_size
+    for name in ds.shards["file"]:
+        p = ds.path.parent / name
+        if p.is_file():
+            total += p.stat().st_size
+    return total
+
+
+def info(path, *, verify: bool = False) -> dict:
+    """Summarize a dataset (``phyloc info``): sizes, shards complete, bytes; optionally verify.
+
+    Parameters
+    ----------
+    path : str or Path
+        The master file.
+    verify : bool
+        Also check every shard (:func:`verify_dataset`): its
+        file checksum against the master's record and the SHA-256 of every array; adds the
+        keys of that function.
+
+    Returns
+    -------
+    dict
+        ``path``, ``name``, ``schema_version``, ``phyloc_version``, ``created_utc``, ``seed``,
+        ``scenario``, ``ranging``, ``n_realizations``, ``n_snapshots``, ``n_nodes``,
+        ``n_agents``, ``n_anchors``, ``dim``, ``max_links``, ``n_subcarriers``,
+        ``oversampling``, ``n_samples``, ``bandwidth_hz``, ``n_shards``, ``shard_size``,
+        ``shards_complete``, ``complete`` (bool), ``realizations_available``, ``links``
+        (stored received waveforms), ``paths``, ``bytes`` (master + shard files on disk).
+
+    Raises
+    ------
+    DatasetError, SchemaVersionError
+        As :func:`open_dataset`.
+    """
+    with open_dataset(path) as ds:
+        a = ds.file.attrs
+        sh = ds.shards
+        avail = int(
+            sum(
+                b - s
+                for s, b, c in zip(
+                    sh["realization_start"], sh["realization_stop"], sh["complete"], strict=True
+                )
+                if c
+            )
+        )
+        out = {
+            "path": str(ds.path),
+            "name": ds.name,
+            "schema_version": ds.schema_version,
+            "phyloc_version": ds.phyloc_version,
+            "created_utc": ds.created_utc,
+            "seed": ds.seed,
+            "scenario": ds.scenario,
+            "ranging": ds.ranging,
+            "n_realizations": ds.n_realizations,
+            "n_snapshots": ds.n_snapshots,
+            "n_nodes": ds.n_nodes,
+            "n_agents": int(a["n_agents"]),
+            "n_anchors": int(a["n_anchors"]),
+            "dim": ds.dim,
+            "max_links": ds.max_links,
+            "n_subcarriers": ds.system.n_subcarriers,
+            "oversampling": ds.system.oversampling,
+            "n_samples": ds.system.n_samples,
+            "bandwidth_hz": ds.system.bandwidth_hz,
+            "n_shards": ds.n_shards,
+            "shard_size": ds.shard_size,
+            "shards_complete": int(sh["complete"].sum()),
+            "complete": ds.complete,
+            "realizations_available": avail,
+            "links": int(sh["n_links"][sh["complete"]].sum()),
+            "paths": int(sh["n_paths"][sh["complete"]].sum()),
+            "bytes": _disk_bytes(ds),
+        }
+    if verify:
+        out.update(verify_dataset(path))
+    return out

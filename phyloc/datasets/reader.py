@@ -10,8 +10,8 @@ Typical use (the package docstring of :mod:`phyloc.datasets` has a runnable exam
 Every array of the schema (``datasets/README.md``) is available lazily as an ``h5py.Dataset``
 (``ds["received"]``, ``ds.arrays``); :meth:`Dataset.snapshot` and :meth:`Dataset.realization`
 read what one snapshot or one realization needs, and the iterators walk them in order.
-:func:`info` summarizes a dataset; checking its integrity (``verify``) is
-:mod:`phyloc.datasets.integrity`.
+:func:`~phyloc.datasets.integrity.info` summarizes a dataset and checks its integrity
+(:mod:`phyloc.datasets.integrity`).
 
 References
 ----------
@@ -513,100 +513,3 @@ def open_xarray(path):
 
 #: ``phyloc.datasets.open`` (the name the package exports).
 open = open_dataset
-
-
-def _disk_bytes(ds: Dataset) -> int:
-    total = ds.path.stat().st_size
-    for name in ds.shards["file"]:
-        p = ds.path.parent / name
-        if p.is_file():
-            total += p.stat().st_size
-    return total
-
-
-def info(path, *, verify: bool = False) -> dict:
-    """Summarize a dataset (``phyloc info``): sizes, shards complete, bytes; optionally verify.
-
-    Parameters
-    ----------
-    path : str or Path
-        The master file.
-    verify : bool
-        Also check every shard (:func:`~phyloc.datasets.integrity.verify_dataset`): its
-        file checksum against the master's record and the SHA-256 of every array; adds the
-        keys of that function.
-
-    Returns
-    -------
-    dict
-        ``path``, ``name``, ``schema_version``, ``phyloc_version``, ``created_utc``, ``seed``,
-        ``scenario``, ``ranging``, ``n_realizations``, ``n_snapshots``, ``n_nodes``,
-        ``n_agents``, ``n_anchors``, ``dim``, ``max_links``, ``n_subcarriers``,
-        ``oversampling``, ``n_samples``, ``bandwidth_hz``, ``n_shards``, ``shard_size``,
-        ``shards_complete``, ``complete`` (bool), ``realizations_available``, ``links``
-        (stored received waveforms), ``paths``, ``bytes`` (master + shard files on disk).
-
-    Raises
-    ------
-    DatasetError, SchemaVersionError
-        As :func:`open_dataset`.
-    """
-    with open_dataset(path) as ds:
-        a = ds.file.attrs
-        sh = ds.shards
-        avail = int(
-            sum(
-                b - s
-                for s, b, c in zip(
-                    sh["realization_start"], sh["realization_stop"], sh["complete"], strict=True
-                )
-                if c
-            )
-        )
-        out = {
-            "path": str(ds.path),
-            "name": ds.name,
-            "schema_version": ds.schema_version,
-            "phyloc_version": ds.phyloc_version,
-            "created_utc": ds.created_utc,
-            "seed": ds.seed,
-            "scenario": ds.scenario,
-            "ranging": ds.ranging,
-            "n_realizations": ds.n_realizations,
-            "n_snapshots": ds.n_snapshots,
-            "n_nodes": ds.n_nodes,
-            "n_agents": int(a["n_agents"]),
-            "n_anchors": int(a["n_anchors"]),
-            "dim": ds.dim,
-            "max_links": ds.max_links,
-            "n_subcarriers": ds.system.n_subcarriers,
-            "oversampling": ds.system.oversampling,
-            "n_samples": ds.system.n_samples,
-            "bandwidth_hz": ds.system.bandwidth_hz,
-            "n_shards": ds.n_shards,
-            "shard_size": ds.shard_size,
-            "shards_complete": int(sh["complete"].sum()),
-            "complete": ds.complete,
-            "realizations_available": avail,
-            "links": int(sh["n_links"][sh["complete"]].sum()),
-            "paths": int(sh["n_paths"][sh["complete"]].sum()),
-            "bytes": _disk_bytes(ds),
-        }
-    if verify:
-        from phyloc.datasets.integrity import verify_dataset
-
-        out.update(verify_dataset(path))
-    return out
-
-
-#: The integrity checks moved to :mod:`phyloc.datasets.integrity`; importing them from here
-#: still works.
-_MOVED = frozenset({"check_master", "check_shard_files", "verify", "verify_dataset"})
-
-
-def __getattr__(name):
-    if name in _MOVED:
-        from phyloc.datasets import integrity
-
-        return getattr(integrity, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

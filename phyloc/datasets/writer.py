@@ -16,11 +16,9 @@ master's record, every array against its checksum, recipe fingerprint, realizati
 corrupt ones are generated again. The result is identical, array by array, to an uninterrupted
 run. Without ``resume`` an existing output is never overwritten.
 
-The plan, shard and master modules hold the parts; this module re-exports their names that
-were imported from it before (:class:`~phyloc.datasets.plan.DatasetPlan`,
-:func:`~phyloc.datasets.plan.plan_dataset`, :func:`~phyloc.datasets.plan.realization_seed`,
-:func:`~phyloc.datasets.plan.simulate_recipe_realization`,
-:func:`~phyloc.datasets.master.write_master`, :data:`~phyloc.datasets.shard.CRASH_ENV`).
+The parts are :mod:`~phyloc.datasets.plan` (what to write), :mod:`~phyloc.datasets.shard`
+(one shard file) and :mod:`~phyloc.datasets.master` (the master file over the shards); this
+module drives them.
 
 References
 ----------
@@ -49,10 +47,8 @@ from phyloc.datasets.master import previous_master, scan_shards, utc_now, write_
 from phyloc.datasets.plan import (
     DatasetPlan,
     plan_dataset,
-    realization_seed,
-    simulate_recipe_realization,
 )
-from phyloc.datasets.shard import CRASH_ENV, ShardTask, crash_modes, write_shard
+from phyloc.datasets.shard import ShardTask, crash_modes, write_shard
 from phyloc.errors import ValidationError
 from phyloc.parallel import threads_per_task
 
@@ -294,12 +290,4 @@ def _run_dask(client, tasks, done) -> None:
             done(task, rec, None)
 
 
-__all__ = [
-    "CRASH_ENV",
-    "DatasetPlan",
-    "generate",
-    "plan_dataset",
-    "realization_seed",
-    "simulate_recipe_realization",
-    "write_master",
-]
+__all__ = ["generate"]

@@ -130,13 +130,19 @@ from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
+from phyloc.evaluation.static_figures import (
+    plot,
+    summary_headers,
+    summary_lines,
+    summary_rows,
+    threshold_name,
+)
 from phyloc.evaluation.static_scenarios import paper_static_scenario
 from phyloc.localization import METHODS as REGISTRY
 from phyloc.localization.static import StaticPrior
 from phyloc.localization.static.ellipses import ellipse_outer_approximation
 from phyloc.localization.static.poa_network import poa
 from phyloc.localization.static.static_ranges import range_error_model
-from phyloc.reporting import new_figure, save_figure
 
 #: The methods of the POA-NBP paper's comparison (the default of ``experiment.methods``); any
 #: method registered in :data:`phyloc.localization.METHODS` with family ``"static"`` may be
@@ -159,11 +165,6 @@ _FROM_METHOD = ("proposal", "support")
 ERRORS = ("exponential", "gaussian")
 BASELINE_STARTS = ("mds", "heuristic")
 OUTAGE_GRID_M = np.logspace(-2, 1.7, 149)
-_TIMING = ("_s", "_ratio")
-
-
-def _threshold_name(x: float) -> str:
-    return f"{x:g}".replace(".", "p") + "m"
 
 
 @dataclass(frozen=True)
@@ -561,7 +562,7 @@ def _aggregate(results, exp: StaticExperimentSpec):
         figures[f"{m}.time_to_convergence_s"] = conv * t_it + t_sup
         series[f"{m}.outage"] = np.mean(final[:, None] > OUTAGE_GRID_M, axis=0)
         for x in exp.outage_thresholds_m:
-            figures[f"{m}.outage_{_threshold_name(x)}"] = float(np.mean(final > x))
+            figures[f"{m}.outage_{threshold_name(x)}"] = float(np.mean(final > x))
         _overhead_figures(figures, f"{m}.ns{exp.n_samples}", [r[f"{m}|overhead"] for r in results])
     for m in exp.sample_methods:
         for ns in exp.sample_sweep:
@@ -575,7 +576,7 @@ def _aggregate(results, exp: StaticExperimentSpec):
             )
             series[f"{base}.outage"] = np.mean(e[:, None] > OUTAGE_GRID_M, axis=0)
             for x in exp.outage_thresholds_m:
-                figures[f"{base}.outage_{_threshold_name(x)}"] = float(np.mean(e > x))
+                figures[f"{base}.outage_{threshold_name(x)}"] = float(np.mean(e > x))
             _overhead_figures(figures, base, [r[f"{m}|ns{ns}|overhead"] for r in swept])
     if "poa_nbp" in exp.methods:  # POA-NBP Table I: POA-NBP against the other NBP variants
         for m in exp.methods:
@@ -591,109 +592,6 @@ def _finite_mean(area):
     fin = np.isfinite(area)
     n = fin.sum(axis=1)
     return np.where(n > 0, np.where(fin, area, 0.0).sum(axis=1) / np.maximum(n, 1), np.nan)
-
-
-def is_timing(name: str) -> bool:
-    """True for the wall-time figures (the only ones that depend on the machine)."""
-    return name.endswith(_TIMING)
-
-
-def summary_headers(results: dict):
-    """Headers of :func:`summary_rows`."""
-    thr = results["meta"]["outage_thresholds_m"]
-    return [
-        "method",
-        "mean error [m]",
-        "RMSE [m]",
-        "conv. it.",
-        "t/node-it [s]",
-        "t conv. [s]",
-        *[f"P(e>{x:g} m)" for x in thr],
-        "floats/link-it",
-        "ops/node",
-    ]
-
-
-def summary_rows(results: dict):
-    """Accuracy after convergence, iterations and time to convergence per method."""
-    f, meta = results["figures"], results["meta"]
-    tok = f"ns{meta['experiment']['n_samples']}"
-    rows = []
-    for m in meta["methods"]:
-        rows.append(
-            (
-                meta["labels"].get(m, m),
-                f[f"{m}.mean_error_m"],
-                f[f"{m}.rmse_m"],
-                int(f[f"{m}.convergence_iteration"]),
-                f[f"{m}.time_per_node_iteration_s"],
-                f[f"{m}.time_to_convergence_s"],
-                *[f[f"{m}.outage_{_threshold_name(x)}"] for x in meta["outage_thresholds_m"]],
-                f.get(f"{m}.{tok}.floats_per_link_iteration", float("nan")),
-                f.get(f"{m}.{tok}.operations_per_node", float("nan")),
-            )
-        )
-    return rows
-
-
-def summary_lines(results: dict):
-    """Polygon study and sample sweep in a few lines."""
-    f, meta = results["figures"], results["meta"]
-    L = meta["experiment"]["poa_iterations"]
-    out = [
-        f"{meta['topologies']} topologies x {meta['n_agents']} agents; "
-        f"POA containment {f['poa.containment_fraction']:.4f}, "
-        f"{f['poa.time_per_node_s'] * 1e3:.2f} ms per node, "
-        f"rejection-sampling acceptance {f['poa.rejection_acceptance_rate']:.2f}, "
-        f"dropped {f['poa.dropped_fraction']:.4f} of the ranges"
-    ]
-    for ne in meta["n_edges"]:
-        areas = ", ".join(f"{f[f'poa.ne{ne}.area_it{it}_m2']:.0f}" for it in range(1, L + 1))
-        out.append(f"mean polygon area N_E={ne} per iteration [m²]: {areas}")
-    if "ellipse.area_it1_m2" in f:
-        areas = ", ".join(f"{f[f'ellipse.area_it{it}_m2']:.0f}" for it in range(1, L + 1))
-        out.append(f"mean ellipse area per iteration [m²]: {areas}")
-    for m in meta["sample_methods"]:
-        parts = [f"N_S={ns}: {f[f'{m}.ns{ns}.mean_error_m']:.3f} m" for ns in meta["sample_sweep"]]
-        if parts:
-            out.append(f"{meta['labels'].get(m, m)} mean error vs samples: " + ", ".join(parts))
-    return out
-
-
-def plot(results: dict, path) -> None:
-    """Figs. 9–12: polygon area vs iteration, mean error vs iteration, outage, samples."""
-    ser, meta = results["series"], results["meta"]
-    fig, ax = new_figure(1, 4, size=(20, 4.6))
-    it = ser["poa_iteration"]
-    for ne in meta["n_edges"]:
-        ax[0].plot(it, ser[f"poa.ne{ne}.area_m2"], "o-", label=f"POA N_E={ne}")
-    if "ellipse.area_m2" in ser:
-        ax[0].plot(it, ser["ellipse.area_m2"], "k^--", label="ellipses")
-    ax[0].set(xlabel="iteration", ylabel="mean area [m²]", yscale="log", title="Fig. 9")
-    for m in meta["methods"]:
-        label = meta["labels"].get(m, m)
-        ax[1].plot(ser["iteration"], ser[f"{m}.mean_error_m"], "o-", label=label)
-        ax[2].semilogx(ser["outage_threshold_m"], ser[f"{m}.outage"], label=label)
-    ax[1].set(
-        xlabel="iteration", ylabel="mean localization error [m]", yscale="log", title="Fig. 10"
-    )
-    ax[2].set(xlabel="error threshold [m]", ylabel="outage probability", title="Fig. 11")
-    for k, m in enumerate(meta["sample_methods"]):  # the first (POA-NBP) solid, others dashed
-        for ns in meta["sample_sweep"]:
-            ax[3].semilogx(
-                ser["outage_threshold_m"],
-                ser[f"{m}.ns{ns}.outage"],
-                "-" if k == 0 else "--",
-                label=f"{meta['labels'].get(m, m)} N_S={ns}",
-            )
-    if "pbp" in meta["methods"]:  # POA-NBP Fig. 12 draws PBP as the reference curve
-        ax[3].semilogx(ser["outage_threshold_m"], ser["pbp.outage"], "k:", label="PBP")
-    ax[3].set(xlabel="error threshold [m]", ylabel="outage probability", title="Fig. 12")
-    for a in ax:
-        a.grid(True, which="both", alpha=0.3)
-        a.legend(fontsize=7)
-    fig.suptitle(f"{meta['recipe']}: {meta['topologies']} topologies x {meta['n_agents']} agents")
-    save_figure(fig, path)
 
 
 class StaticExperiment(Experiment):

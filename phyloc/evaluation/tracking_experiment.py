@@ -97,7 +97,8 @@ Series: ``k`` (1 … K); ``<m>.<s>.rmse_p_m`` / ``rmse_v_m_s`` / ``rmse_a_m_s2``
 Fig. 4a, = 1 − outage over all steps). With PF-BP among the methods, ``flow_example.*``: the
 particle flow of two cooperating agents near three anchors (PF-BP Fig. 1,
 :func:`~phyloc.evaluation.range_scenarios.flow_example`), drawn as ``<recipe>_flow.png``.
-With ``memory_agents``, the memory study (:func:`memory_study`): figures
+With ``memory_agents``, the memory study
+(:func:`~phyloc.evaluation.tracking_memory.memory_study`): figures
 ``<m>.<s>.peak_rss_mb`` / ``run_rss_mb`` (and per size ``<m>.<s>.agents_<n>.*``), series
 ``memory_agents`` and ``<m>.<s>.peak_rss_mb_by_agents``, drawn as ``<recipe>_memory.png``.
 
@@ -115,7 +116,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -126,30 +126,27 @@ from phyloc.analysis.pcrlb import pcrlb
 from phyloc.channels import ChannelSpec
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
-from phyloc.evaluation.range_scenarios import (
-    RangeScenario,
-    flow_example,
-    network_states,
-    scenario_network_spec,
-    simulate_scenario,
-)
+from phyloc.evaluation.range_scenarios import flow_example
 from phyloc.evaluation.sections import RangingSpec, scenario_specs
+from phyloc.evaluation.tracking_figures import (
+    OUTAGE_GRID_M,
+    UNITS,
+    plot,
+    summary_headers,
+    summary_lines,
+    summary_rows,
+    threshold_name,
+)
+from phyloc.evaluation.tracking_memory import memory_study
+from phyloc.evaluation.tracking_scenarios import gaussian_run, run_network_spec, sage_run
 from phyloc.localization import METHODS
 from phyloc.localization.tracking import STATE_MODELS, RangeModel, paper_prior
-from phyloc.reporting import new_figure, save_figure
 
 FAMILY = "tracking"
 #: The methods of PF-BP §VI, the default of ``experiment.methods``.
 DEFAULT_METHODS = ("pfbp", "pfbp_reg", "sirbp", "sirbp_reg", "spbp", "spbp_reg", "edh", "edh_reg")
 MEASUREMENTS = ("gaussian", "sage")
 SAGE_SIGMA_RULES = ("residual", "zzb")
-_UNITS = {"p": "p_m", "v": "v_m_s", "a": "a_m_s2"}
-OUTAGE_GRID_M = np.logspace(-2, 1.5, 141)
-_TIMING_SUFFIXES = (".step_s", ".agent_s", ".step_ratio")
-
-
-def _threshold_name(x: float) -> str:
-    return f"{x:g}".replace(".", "p") + "m"
 
 
 @dataclass(frozen=True)
@@ -373,124 +370,16 @@ def method_options(localization: dict, exp: TrackingExperimentSpec) -> dict:
     return out
 
 
-def _network_spec(exp: TrackingExperimentSpec, scen: dict):
-    spec = scenario_network_spec(
-        scen["n_agents"],
-        exp.n_steps,
-        motion=exp.motion,
-        dim=exp.dim,
-        side_m=exp.side_m,
-        dt_s=exp.dt_s,
-        accel_std=exp.accel_std,
-    )
-    if math.isfinite(scen["comm_range_m"]):
-        spec = dataclasses.replace(spec, comm_range_m=scen["comm_range_m"])
-    return spec
-
-
-def _gaussian_scenario(exp, scen, rng):
-    from phyloc.network import make_network
-
-    net = make_network(_network_spec(exp, scen), rng)
-    r = scen["comm_range_m"]
-    return simulate_scenario(
-        net, exp.model(), rng, comm_range_m=r if math.isfinite(r) else None
-    ), None
-
-
-def _sage_scenario(exp, scen, system, chan, rspec, rng):
-    """Range measurements of SAGE on simulated waveforms (``measurements = "sage"``)."""
-    from phyloc.datasets.simulate import simulate_realization
-    from phyloc.phy.correlation import correlation_tables
-    from phyloc.ranging import estimate
-
-    model = exp.model()
-    real = simulate_realization(system, _network_spec(exp, scen), chan, rng)
-    net = real.network
-    agents, anchors = net.agent_index, net.anchor_index
-    col = np.empty(net.n_nodes, np.int64)
-    col[agents] = np.arange(agents.size)
-    col[anchors] = agents.size + np.arange(anchors.size)
-    K = exp.n_steps
-    z = np.full((K, agents.size, net.n_nodes), np.nan)
-    err, var, n_links = [], [], 0
-    first = None  # (links, ranges) of the first snapshot with valid estimates
-    for k in range(1, K + 1):
-        lk = real.links[k]
-        rx_agent = ~net.is_anchor[lk[:, 0]]
-        lk = lk[rx_agent]
-        n_links += lk.shape[0]
-        if lk.shape[0] == 0:
-            continue
-        table = correlation_tables(
-            real.received[k][rx_agent], real.symbols, system, beta=rspec.beta, tx_index=lk[:, 1]
-        )
-        est = estimate("sage", table, **rspec.method_options("sage"))
-        rng_m = est.range_m / real.ways
-        ok = np.asarray(est.valid, bool)
-        z[k - 1, col[lk[ok, 0]], col[lk[ok, 1]]] = rng_m[ok]
-        err.append((rng_m - net.distances(k)[rx_agent])[ok])
-        if first is None:
-            first = (lk[ok], rng_m[ok])
-        var.append(est.variance_m2[ok] / real.ways**2)
-    states = network_states(net, model)[: K + 1]  # the truth, for the errors and the PCRLB
-    sc = RangeScenario(
-        model=model,
-        anchors=np.ascontiguousarray(net.positions[0, anchors]),
-        initial_states=states[0],
-        states=states[1:],
-        z=z,
-        comm_range_m=scen["comm_range_m"],
-    )
-    err, var = np.concatenate(err), np.concatenate(var)
-    sigma = exp.sage_sigma_m
-    zzb = math.sqrt(float(np.median(var))) if var.size else exp.sigma_r
-    if sigma == "residual":
-        sigma = _residual_sigma(net, first, dim=exp.dim)
-        sigma = zzb if sigma is None else max(sigma, zzb)
-    elif sigma == "zzb":
-        sigma = zzb
-    info = {
-        "sq_err_sum": float(np.sum(err**2)),
-        "n_valid": int(err.size),
-        "n_links": int(n_links),
-        "sigma_m": float(sigma),
-    }
-    return sc, info
-
-
-def _residual_sigma(net, first, *, dim):
-    """RMS range residual [m] of the coarse MDS/SMACOF fit of one snapshot's ranges (anchors
-    fixing the frame); truth-free. ``None`` without ranges or for a disconnected graph."""
-    from phyloc.localization.initialization import coarse_positions
-
-    if first is None or first[0].shape[0] == 0:
-        return None
-    links, ranges = first
-    try:
-        sol = coarse_positions(
-            links,
-            ranges,
-            net.n_nodes,
-            dim,
-            is_anchor=net.is_anchor,
-            anchor_positions=net.positions[0, net.anchor_index],
-        )
-    except ValidationError:
-        return None
-    return float(sol.residual_rms_m)
-
-
 def _task(payload, seed_seq):
     """One Monte Carlo run of one scenario: measurements, prior, every method."""
     exp, scen, options, bases, extra, run_index = payload
     streams = seed_seq.spawn(2 + len(exp.methods))
     rng = np.random.default_rng(streams[0])
     if exp.measurements == "gaussian":
-        sc, info = _gaussian_scenario(exp, scen, rng)
+        sc, info = gaussian_run(exp, scen, rng)
         meas = sc.measurements()
     else:
-        sc, info = _sage_scenario(exp, scen, *extra, rng)
+        sc, info = sage_run(exp, scen, *extra, rng)
         model = dataclasses.replace(sc.model, sigma_r=info["sigma_m"])
         meas = dataclasses.replace(sc.measurements(), model=model)
     prior = paper_prior(
@@ -512,119 +401,6 @@ def _task(payload, seed_seq):
         out[f"{m}|agent_s"] = res.timing.agent_s
         out[f"{m}|floats"] = float(res.diagnostics.get("floats_per_link_iteration", np.nan))
     return out
-
-
-def _status_mb(field: str) -> float:
-    """A ``/proc/self/status`` memory field (``VmRSS``, ``VmHWM``) [MB]; NaN where absent."""
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith(field + ":"):
-                    return float(line.split()[1]) / 1024.0  # kB
-    except OSError:
-        pass
-    return math.nan
-
-
-def _reset_peak_rss() -> bool:
-    """Reset this process's peak RSS (``VmHWM``) to its current RSS (Linux >= 4.0:
-    ``echo 5 > /proc/self/clear_refs``); False where that is not possible."""
-    try:
-        with open("/proc/self/clear_refs", "w") as fh:
-            fh.write("5")
-        return True
-    except OSError:
-        return False
-
-
-def _peak_rss_mb() -> float:
-    """This process's peak resident set size so far [MB] (``ru_maxrss``: KiB on Linux)."""
-    import resource
-    import sys
-
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak / (1024.0**2 if sys.platform == "darwin" else 1024.0)  # bytes on macOS
-
-
-def _memory_probe(payload) -> tuple[float, float]:
-    """Peak RSS of one method on one network, in a fresh process: ``(before, peak)`` [MB].
-
-    The method first runs on a 2-agent, 1-step network with the same options (its kernels
-    compile or load from the cache there, so compiler memory is not counted), then the
-    scenario is simulated and the prior drawn. ``before`` is the resident set size then, and
-    the peak is measured from there on: the kernel's peak-RSS mark is reset to the current RSS
-    (``/proc/self/clear_refs``), so memory freed earlier (imports, compilation) cannot hide
-    the run's; where that reset is impossible, ``before`` is the high-water mark so far
-    (``ru_maxrss``) and a run below it reads as 0."""
-    exp, scen, options, base, seed = payload
-    rng = np.random.default_rng(seed)
-    method = METHODS[base]
-    tiny = dataclasses.replace(exp, n_steps=1)
-    sc, _ = _gaussian_scenario(tiny, {"n_agents": 2, "comm_range_m": math.inf}, rng)
-    small = options
-    if hasattr(options, "n_particles"):  # a small warm-up run
-        small = dataclasses.replace(options, n_particles=min(options.n_particles, 64))
-    meas = sc.measurements()
-    method.run(meas, paper_prior(meas, rng), rng, small)
-    sc, _ = _gaussian_scenario(exp, scen, rng)
-    meas = sc.measurements()
-    prior = paper_prior(meas, rng, sigma_p=exp.sigma_p, accel_init_factor=exp.accel_init_factor)
-    if _reset_peak_rss():
-        before = _status_mb("VmRSS")
-        method.run(meas, prior, rng, options)
-        return before, _status_mb("VmHWM")
-    before = _peak_rss_mb()
-    method.run(meas, prior, rng, options)
-    return before, _peak_rss_mb()
-
-
-def memory_study(exp, options, bases, seed, *, progress=True) -> dict:
-    """Peak memory of every method per network size (PF-BP abstract: PF-BP keeps a Gaussian
-    per agent where SIR-BP keeps and exchanges particles).
-
-    Each (method, network) runs :func:`_memory_probe` in a fresh spawned process, one at a
-    time (``ru_maxrss`` is a per-process high-water mark). Networks: every scenario of ``exp``
-    at its own size, and ``exp.memory_agents`` at the first scenario's communication range,
-    ``exp.memory_steps`` steps each, Gaussian range measurements (the tracker's memory does not
-    depend on how the ranges were measured). Returns figures ``<m>.<s>.peak_rss_mb`` (the
-    process's peak RSS during the run) and ``<m>.<s>.run_rss_mb`` (that peak minus the RSS
-    before the run: what the method itself needed), and the same per size as
-    ``<m>.<s>.agents_<n>.peak_rss_mb`` / ``.run_rss_mb``."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    from tqdm.auto import tqdm
-
-    from phyloc.parallel import _quiet_progress
-
-    first = next(iter(exp.scenarios))
-    short = dataclasses.replace(exp, n_steps=exp.memory_steps)
-    jobs = []
-    for tok, scen in exp.scenarios.items():
-        jobs.append((f"{tok}", scen))
-    for n in exp.memory_agents:
-        r = exp.scenarios[first]["comm_range_m"]
-        jobs.append((f"{first}.agents_{n}", {"n_agents": n, "comm_range_m": r}))
-    seeds = np.random.SeedSequence(seed).spawn(len(jobs))
-    ctx = multiprocessing.get_context("spawn")
-    figures = {}
-    todo = [
-        (m, label, scen, s)
-        for m in exp.methods
-        for (label, scen), s in zip(jobs, seeds, strict=True)
-    ]
-    bar = tqdm(total=len(todo), desc="memory", disable=not progress or _quiet_progress())
-    try:
-        for m, label, scen, s in todo:
-            with ProcessPoolExecutor(1, mp_context=ctx) as pool:
-                payload = (short, scen, options[m], bases[m], s)
-                before, after = pool.submit(_memory_probe, payload).result()
-            figures[f"{m}.{label}.peak_rss_mb"] = after
-            figures[f"{m}.{label}.run_rss_mb"] = max(after - before, 0.0)
-            bar.update(1)
-    finally:
-        bar.close()
-    return figures
 
 
 def _aggregate(keys, results, exp):
@@ -649,11 +425,11 @@ def _aggregate(keys, results, exp):
         cond_one = pcrlb(scs, P0, average="bound", pairs="one").bounds
         for b in blocks:
             for name, bb in (("pcrlb", bound), ("pcrlb_cond", cond)):
-                series[f"{name}.{tok}.{_UNITS[b]}"] = bb[b]
+                series[f"{name}.{tok}.{UNITS[b]}"] = bb[b]
                 for k in exp.report_steps:
-                    figures[f"{name}.{tok}.k{k}.{_UNITS[b]}"] = float(bb[b][k - 1])
+                    figures[f"{name}.{tok}.k{k}.{UNITS[b]}"] = float(bb[b][k - 1])
             for k in exp.report_steps:
-                figures[f"pcrlb_cond_one_range.{tok}.k{k}.{_UNITS[b]}"] = float(cond_one[b][k - 1])
+                figures[f"pcrlb_cond_one_range.{tok}.k{k}.{UNITS[b]}"] = float(cond_one[b][k - 1])
         if exp.measurements == "sage":
             n_valid = sum(p["sage"]["n_valid"] for p in parts)
             sq = sum(p["sage"]["sq_err_sum"] for p in parts)
@@ -674,9 +450,9 @@ def _aggregate(keys, results, exp):
             for b in blocks:
                 e = np.concatenate([p[f"{m}|e_{b}"] for p in m_parts], axis=1)  # [K, runs·agents]
                 rmse = np.sqrt(np.mean(e**2, axis=1))
-                series[f"{base}.rmse_{_UNITS[b]}"] = rmse
+                series[f"{base}.rmse_{UNITS[b]}"] = rmse
                 for k in exp.report_steps:
-                    figures[f"{base}.k{k}.rmse_{_UNITS[b]}"] = float(rmse[k - 1])
+                    figures[f"{base}.k{k}.rmse_{UNITS[b]}"] = float(rmse[k - 1])
             ep = np.concatenate([p[f"{m}|e_p"] for p in m_parts], axis=1)
             for k in exp.report_steps:
                 figures[f"{base}.k{k}.rmse_over_pcrlb"] = float(
@@ -690,7 +466,7 @@ def _aggregate(keys, results, exp):
                 ek = ep[k - 1]
                 series[f"{base}.k{k}.outage"] = np.mean(ek[:, None] > OUTAGE_GRID_M, axis=0)
                 for x in exp.outage_thresholds_m:
-                    figures[f"{base}.k{k}.outage_{_threshold_name(x)}"] = float(np.mean(ek > x))
+                    figures[f"{base}.k{k}.outage_{threshold_name(x)}"] = float(np.mean(ek > x))
             series[f"{base}.error_cf"] = np.mean(ep.reshape(-1)[:, None] <= OUTAGE_GRID_M, axis=0)
             figures[f"{base}.step_s"] = float(
                 np.median(np.concatenate([p[f"{m}|step_s"] for p in m_parts]))
@@ -706,214 +482,6 @@ def _aggregate(keys, results, exp):
                 figures[f"sirbp.{tok}.step_s"] / figures[f"pfbp.{tok}.step_s"]
             )
     return figures, series
-
-
-def is_timing(name: str) -> bool:
-    """True for the wall-time figures (the only ones that depend on the machine)."""
-    return name.endswith(_TIMING_SUFFIXES)
-
-
-def summary_headers(results: dict):
-    """Headers of :func:`summary_rows`."""
-    meta = results["meta"]
-    last = max(meta["report_steps"]) if meta["report_steps"] else None
-    return [
-        "scenario",
-        "method",
-        *[f"RMSE_p k={k} [m]" for k in meta["report_steps"]],
-        f"RMSE/PCRLB k={last}",
-        f"RMSE/PCRLB cond. k={last}",
-        "step [s]",
-        "per agent [s]",
-    ]
-
-
-def summary_rows(results: dict):
-    """Position RMSE at the report steps, RMSE/PCRLB at the last one, time per step."""
-    f, meta = results["figures"], results["meta"]
-    steps = meta["report_steps"]
-    rows = []
-    for tok in meta["scenarios"]:
-        for m in meta["methods"]:
-            base = f"{m}.{tok}"
-            rows.append(
-                (
-                    tok,
-                    m,
-                    *[f[f"{base}.k{k}.rmse_p_m"] for k in steps],
-                    f[f"{base}.k{steps[-1]}.rmse_over_pcrlb"] if steps else None,
-                    f[f"{base}.k{steps[-1]}.rmse_over_pcrlb_cond"] if steps else None,
-                    f[f"{base}.step_s"],
-                    f.get(f"{base}.agent_s"),
-                )
-            )
-        for name, label in (("pcrlb", "PCRLB"), ("pcrlb_cond", "PCRLB (cond.)")):
-            rows.append(
-                (tok, label, *[f[f"{name}.{tok}.k{k}.p_m"] for k in steps], None, None, None, None)
-            )
-    return rows
-
-
-def summary_lines(results: dict):
-    """Outage probabilities and the SIR-BP/PF-BP time ratio."""
-    f, meta = results["figures"], results["meta"]
-    out = [
-        f"{meta['runs']} runs x {meta['n_steps']} steps, {meta['measurements']} measurements; "
-        f"times: {meta['timing']}"
-    ]
-    for tok in meta["scenarios"]:
-        for k in meta["outage_steps"]:
-            parts = []
-            for m in meta["methods"]:
-                o = ", ".join(
-                    f"{f[f'{m}.{tok}.k{k}.outage_{_threshold_name(x)}']:.2f}"
-                    for x in meta["outage_thresholds_m"]
-                )
-                parts.append(f"{m} {o}")
-            thr = "/".join(f"{x:g}" for x in meta["outage_thresholds_m"])
-            out.append(f"{tok} k={k} outage P(e > {thr} m): " + "; ".join(parts))
-        if sizes := meta.get("memory_agents"):
-            first = next(iter(meta["scenarios"]))
-            mem = "; ".join(
-                f"{m} " + "/".join(f"{f[f'{m}.{first}.agents_{n}.run_rss_mb']:.3g}" for n in sizes)
-                for m in meta["methods"]
-            )
-            if tok == first:
-                agents = "/".join(str(n) for n in sizes)
-                out.append(f"{tok}: memory of one run [MB] at {agents} agents: {mem}")
-        if (key := f"sirbp_over_pfbp.{tok}.step_ratio") in f:
-            out.append(f"{tok}: SIR-BP / PF-BP time per step = {f[key]:.3g}")
-        if (key := f"sage.{tok}.range_rmse_m") in f:
-            out.append(
-                f"{tok}: SAGE range RMSE {f[key]:.3g} m over valid links "
-                f"({100 * f[f'sage.{tok}.valid_fraction']:.0f} % valid), "
-                f"σ given to the trackers {f[f'sage.{tok}.sigma_m']:.3g} m"
-            )
-    return out
-
-
-def _plot_example(fig, ax, ser, tok) -> None:
-    """PF-BP Fig. 3: the first run's true trajectories (x–y), each point coloured by the number
-    of anchors the agent ranges to at that step; anchors black, start points red."""
-    pos = np.asarray(ser[f"{tok}.example_positions_m"])
-    links = np.asarray(ser[f"{tok}.example_anchor_links"])
-    anchors = np.asarray(ser[f"{tok}.anchors_m"])
-    sc = ax.scatter(pos[..., 0].ravel(), pos[..., 1].ravel(), c=links.ravel(), s=4, cmap="viridis")
-    ax.plot(pos[0, :, 0], pos[0, :, 1], "rd", ms=4, label="start")
-    ax.plot(anchors[:, 0], anchors[:, 1], "ks", ms=5, label="anchors")
-    fig.colorbar(sc, ax=ax, label="anchor connections")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_title(f"{tok}: run 1, true trajectories", fontsize=9)
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.legend(fontsize=6)
-
-
-def plot(results: dict, path) -> None:
-    """RMSE of p, v, a versus k with the PCRLB (Fig. 4, 7) and outage curves (Fig. 6), per
-    scenario (columns), from results only."""
-    ser, meta = results["series"], results["meta"]
-    toks = list(meta["scenarios"])
-    blocks = meta["blocks"]
-    n_rows = len(blocks) + 2
-    fig, axes = new_figure(n_rows, len(toks), squeeze=False, size=(4.8 * len(toks), 3.0 * n_rows))
-    k = ser["k"]
-    ylabel = {"p": "RMSE_p [m]", "v": "RMSE_v [m/s]", "a": "RMSE_a [m/s²]"}
-    for j, tok in enumerate(toks):
-        for r, b in enumerate(blocks):
-            ax = axes[r, j]
-            for i, m in enumerate(meta["methods"]):
-                reg = meta["options"].get(m, {}).get("regularize", False)  # "reg": dashed
-                ax.semilogy(
-                    k, ser[f"{m}.{tok}.rmse_{_UNITS[b]}"], "--" if reg else "-", color=f"C{i}",
-                    label=m,
-                )  # fmt: skip
-            ax.semilogy(k, ser[f"pcrlb.{tok}.{_UNITS[b]}"], "k--", label="PCRLB")
-            ax.semilogy(k, ser[f"pcrlb_cond.{tok}.{_UNITS[b]}"], "k:", label="PCRLB (cond.)")
-            ax.set_ylabel(ylabel[b])
-            ax.set_xlabel("time step k")
-            ax.grid(True, which="both", alpha=0.3)
-            if r == 0:
-                ax.set_title(f"{tok} (r_max = {meta['scenarios'][tok]['comm_range_m']:g} m)")
-                ax.legend(fontsize=7)
-        ax = axes[-2, j]
-        styles = ("-", "--", ":", "-.")
-        for i, m in enumerate(meta["methods"]):
-            for ko, ls in zip(meta["outage_steps"], styles, strict=False):
-                ax.semilogx(
-                    ser["outage_threshold_m"],
-                    ser[f"{m}.{tok}.k{ko}.outage"],
-                    ls,
-                    color=f"C{i}",
-                    label=f"{m} k={ko}",
-                )
-        ax.set_xlabel("position error threshold [m]")
-        ax.set_ylabel("outage probability")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6, ncol=2)
-        _plot_example(fig, axes[-1, j], ser, tok)
-    fast = " (fast)" if meta.get("fast") else ""
-    sep = "\n" if len(toks) == 1 else " — "  # one column: the title on two lines
-    fig.suptitle(f"Cooperative tracking vs PCRLB{sep}{meta['recipe']}{fast}")
-    save_figure(fig, path)
-    if "memory_agents" in ser:
-        _plot_memory(results, Path(path).with_name(f"{Path(path).stem}_memory.png"))
-    if "flow_example.paths" in ser:
-        _plot_flow(results, Path(path).with_name(f"{Path(path).stem}_flow.png"))
-
-
-def _plot_flow(results: dict, path) -> None:
-    """PF-BP Fig. 1: particle paths of the flow (dash-dotted) over each agent's anchor
-    likelihood (colour map: two ring crossings each), anchors and their links."""
-    ser = results["series"]
-    g = np.asarray(ser["flow_example.grid_m"])
-    maps = np.asarray(ser["flow_example.anchor_loglik"])
-    paths = np.asarray(ser["flow_example.paths"])  # [λ-steps + 1, M, agent, xy]
-    anchors = np.asarray(ser["flow_example.anchors"])
-    truth = np.asarray(ser["flow_example.truth"])
-    fig, ax = new_figure(size=(5.6, 5.0))
-    dens = np.exp(maps - maps.max(axis=(1, 2), keepdims=True)).sum(axis=0)
-    ax.pcolormesh(g, g, dens.T, cmap="viridis", shading="auto")
-    for a, k in np.asarray(ser["flow_example.links"]):
-        other = anchors[k] if k < 3 else truth[1]
-        ax.plot(*np.stack([truth[a], other]).T, color="0.6", lw=0.8, zorder=1)
-    for agent in range(2):
-        for m in range(paths.shape[1]):
-            ax.plot(*paths[:, m, agent].T, "-.", color="limegreen", lw=0.6, zorder=2)
-        ax.plot(*paths[0, :, agent].T, ".", color="white", ms=3, zorder=3)
-        ax.plot(*paths[-1, :, agent].T, ".", color="red", ms=3, zorder=4)
-    ax.plot(*anchors.T, "o", color="0.7", mec="k", ms=9, label="anchors", zorder=5)
-    ax.plot(*truth.T, "x", color="k", ms=9, mew=2, label="agents (truth)", zorder=6)
-    ax.set_xlim(g[0], g[-1])
-    ax.set_ylim(g[0], g[-1])
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.legend(fontsize=7, loc="upper right")
-    ax.set_title(
-        "PF-BP Fig. 1: particle flow of two cooperating agents\n"
-        "(white: prior particles, red: after the flow; colour: anchor likelihood)",
-        fontsize=8,
-    )
-    save_figure(fig, path)
-
-
-def _plot_memory(results: dict, path) -> None:
-    """Peak RSS added by each method's run versus the number of agents (the memory study)."""
-    fig_, ser, meta = results["figures"], results["series"], results["meta"]
-    first = next(iter(meta["scenarios"]))
-    n = ser["memory_agents"]
-    fig, ax = new_figure(size=(5.5, 4.0))
-    for i, m in enumerate(meta["methods"]):
-        run = [fig_[f"{m}.{first}.agents_{a}.run_rss_mb"] for a in n]
-        ax.loglog(n, np.maximum(run, 0.1), "o-", color=f"C{i}", label=m)
-    ax.set_xlabel("number of agents")
-    ax.set_ylabel("memory of one run [MB] (peak RSS added)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    r = meta["scenarios"][first]["comm_range_m"]
-    ax.set_title(f"{meta['recipe']}: memory vs network size (r_max = {r:g} m)", fontsize=9)
-    save_figure(fig, path)
 
 
 class TrackingExperiment(Experiment):
@@ -938,7 +506,7 @@ class TrackingExperiment(Experiment):
             extra = (recipe.system, chan, recipe.section("ranging", RangingSpec))
         for tok, scen in exp.scenarios.items():  # every network before any work starts
             try:
-                _network_spec(exp, scen)
+                run_network_spec(exp, scen)
             except ValidationError as exc:
                 raise ValidationError(
                     f"experiment.scenarios.{tok}.{exc.field}", exc.value, exc.allowed

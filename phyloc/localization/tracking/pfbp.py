@@ -283,11 +283,8 @@ class PFBPTracker(Tracker):
     rng : numpy.random.Generator
     options : PFBPOptions, optional
 
-    Attributes
-    ----------
-    particles : [n_agents, M, N_D]
-    cov : [n_agents, N_D, N_D]
-        The UKF covariances (PF-BP eq. (30)).
+    The tracker's ``particles`` (``[n_agents, M, N_D]``) and ``cov`` (``[n_agents, N_D, N_D]``,
+    the UKF covariances of PF-BP eq. (30)) carry over between steps.
 
     Examples
     --------

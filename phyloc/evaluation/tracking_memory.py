@@ -1,0 +1,133 @@
+"""The tracking experiment's memory study: peak resident memory of every method per network
+size, each run in a fresh process (PF-BP abstract: PF-BP keeps a Gaussian per agent where
+SIR-BP keeps and exchanges particles).
+
+References
+----------
+PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-based 9-D
+cooperative localization and navigation with embedded particle flow."
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from phyloc.evaluation.tracking_scenarios import gaussian_run
+from phyloc.localization import METHODS
+from phyloc.localization.tracking import paper_prior
+
+
+def _status_mb(field: str) -> float:
+    """A ``/proc/self/status`` memory field (``VmRSS``, ``VmHWM``) [MB]; NaN where absent."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith(field + ":"):
+                    return float(line.split()[1]) / 1024.0  # kB
+    except OSError:
+        pass
+    return math.nan
+
+
+def _reset_peak_rss() -> bool:
+    """Reset this process's peak RSS (``VmHWM``) to its current RSS (Linux >= 4.0:
+    ``echo 5 > /proc/self/clear_refs``); False where that is not possible."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
+def _peak_rss_mb() -> float:
+    """This process's peak resident set size so far [MB] (``ru_maxrss``: KiB on Linux)."""
+    import resource
+    import sys
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / (1024.0**2 if sys.platform == "darwin" else 1024.0)  # bytes on macOS
+
+
+def _memory_probe(payload) -> tuple[float, float]:
+    """Peak RSS of one method on one network, in a fresh process: ``(before, peak)`` [MB].
+
+    The method first runs on a 2-agent, 1-step network with the same options (its kernels
+    compile or load from the cache there, so compiler memory is not counted), then the
+    scenario is simulated and the prior drawn. ``before`` is the resident set size then, and
+    the peak is measured from there on: the kernel's peak-RSS mark is reset to the current RSS
+    (``/proc/self/clear_refs``), so memory freed earlier (imports, compilation) cannot hide
+    the run's; where that reset is impossible, ``before`` is the high-water mark so far
+    (``ru_maxrss``) and a run below it reads as 0."""
+    exp, scen, options, base, seed = payload
+    rng = np.random.default_rng(seed)
+    method = METHODS[base]
+    tiny = dataclasses.replace(exp, n_steps=1)
+    sc, _ = gaussian_run(tiny, {"n_agents": 2, "comm_range_m": math.inf}, rng)
+    small = options
+    if hasattr(options, "n_particles"):  # a small warm-up run
+        small = dataclasses.replace(options, n_particles=min(options.n_particles, 64))
+    meas = sc.measurements()
+    method.run(meas, paper_prior(meas, rng), rng, small)
+    sc, _ = gaussian_run(exp, scen, rng)
+    meas = sc.measurements()
+    prior = paper_prior(meas, rng, sigma_p=exp.sigma_p, accel_init_factor=exp.accel_init_factor)
+    if _reset_peak_rss():
+        before = _status_mb("VmRSS")
+        method.run(meas, prior, rng, options)
+        return before, _status_mb("VmHWM")
+    before = _peak_rss_mb()
+    method.run(meas, prior, rng, options)
+    return before, _peak_rss_mb()
+
+
+def memory_study(exp, options, bases, seed, *, progress=True) -> dict:
+    """Peak memory of every method per network size (PF-BP abstract: PF-BP keeps a Gaussian
+    per agent where SIR-BP keeps and exchanges particles).
+
+    Each (method, network) runs :func:`_memory_probe` in a fresh spawned process, one at a
+    time (``ru_maxrss`` is a per-process high-water mark). Networks: every scenario of ``exp``
+    at its own size, and ``exp.memory_agents`` at the first scenario's communication range,
+    ``exp.memory_steps`` steps each, Gaussian range measurements (the tracker's memory does not
+    depend on how the ranges were measured). Returns figures ``<m>.<s>.peak_rss_mb`` (the
+    process's peak RSS during the run) and ``<m>.<s>.run_rss_mb`` (that peak minus the RSS
+    before the run: what the method itself needed), and the same per size as
+    ``<m>.<s>.agents_<n>.peak_rss_mb`` / ``.run_rss_mb``."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from tqdm.auto import tqdm
+
+    from phyloc.parallel import _quiet_progress
+
+    first = next(iter(exp.scenarios))
+    short = dataclasses.replace(exp, n_steps=exp.memory_steps)
+    jobs = []
+    for tok, scen in exp.scenarios.items():
+        jobs.append((f"{tok}", scen))
+    for n in exp.memory_agents:
+        r = exp.scenarios[first]["comm_range_m"]
+        jobs.append((f"{first}.agents_{n}", {"n_agents": n, "comm_range_m": r}))
+    seeds = np.random.SeedSequence(seed).spawn(len(jobs))
+    ctx = multiprocessing.get_context("spawn")
+    figures = {}
+    todo = [
+        (m, label, scen, s)
+        for m in exp.methods
+        for (label, scen), s in zip(jobs, seeds, strict=True)
+    ]
+    bar = tqdm(total=len(todo), desc="memory", disable=not progress or _quiet_progress())
+    try:
+        for m, label, scen, s in todo:
+            with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+                payload = (short, scen, options[m], bases[m], s)
+                before, after = pool.submit(_memory_probe, payload).result()
+            figures[f"{m}.{label}.peak_rss_mb"] = after
+            figures[f"{m}.{label}.run_rss_mb"] = max(after - before, 0.0)
+            bar.update(1)
+    finally:
+        bar.close()
+    return figures
