@@ -338,7 +338,7 @@ def test_wilson_interval_closed_form():
         ("network", "prior_var", "[1.0, 2.0]", "network.prior_var"),
         ("network", "agents", "0", "network.agents"),
         ("network", "planar", "1", "network.planar"),
-        ("localization", "method", '"sirbp"', "localization.method"),
+        ("experiment", "estimator", '"sirbp"', "experiment.estimator"),
     ],
 )
 def test_recipe_errors_name_the_key_before_any_work(tmp_path, section, key, value, match):
@@ -358,3 +358,14 @@ def test_recipe_errors_name_the_key_before_any_work(tmp_path, section, key, valu
     path.write_text("\n".join(out) + "\n")
     with pytest.raises(ValidationError, match=match):
         ce.CONTROL.run(load_recipe(path), progress=False)
+
+
+def test_the_earlier_estimator_form_shows_the_current_one(tmp_path):
+    """``[localization] method = ...`` named the estimator before ``experiment.estimator``."""
+    text = (DATASETS / "fim_control.toml").read_text()
+    path = tmp_path / "old.toml"
+    path.write_text(
+        text.replace("\n[experiment]\n", '\n[localization]\nmethod = "spbp"\n\n[experiment]\n')
+    )
+    with pytest.raises(ValidationError, match=r"localization\.method .*estimator = "):
+        ce.CONTROL.prepare(load_recipe(path))

@@ -52,13 +52,13 @@ process_std_m = 1.0
 [localization.dpe_sampled]
 n_particles = 40
 
+[localization.corr2]
+method = "corr"
+n_particles = 100
+
 [experiment]
 methods = ["dipnet", "dpe_sampled", "corr2"]
 particles_snapshot = 2
-
-[experiment.variants.corr2]
-method = "corr"
-n_particles = 100
 
 [experiment.runs.a.network]
 agents_m = [[10.0, 10.0], [20.0, 10.0], [15.0, 18.0], [5.0, 25.0]]
@@ -191,7 +191,8 @@ def test_replica_recipe_geometry():
     "edit, key",
     [
         (("methods = [", 'methods = ["nope", '), "experiment.methods"),
-        (('method = "corr"', 'method = "nbp"'), "experiment.variants.corr2.method"),
+        (('method = "corr"', 'method = "nbp"'), "localization.corr2.method"),
+        (("[localization.corr2]", "[experiment.variants.corr2]"), "experiment.variants"),
         (("[experiment.runs.a.network]", "[experiment.runs.a.net]"), "experiment.runs.a"),
         (("speeds_m_s = [1.0]", "speeds_m_s = [-1.0]"), "speeds_m_s"),
     ],

@@ -35,7 +35,7 @@ sample_sweep = [20, 40]
 sample_methods = ["poa_nbp"]
 outage_thresholds_m = [1.0]
 
-[localization.nbp]
+[localization]
 bandwidth = "silverman"
 """
 
@@ -234,8 +234,13 @@ _OVERHEAD = (
             "experiment.sample_sweep_topologies",
         ),
         (('"pbp", "wls"]', '"pbp", "lws"]'), "experiment.methods"),
-        (('bandwidth = "silverman"', 'proposal = "mixture"'), "localization.nbp.proposal"),
-        (('bandwidth = "silverman"', 'bandwith = "silverman"'), "localization.nbp.bandwith"),
+        (('bandwidth = "silverman"', 'proposal = "mixture"'), "localization.proposal"),
+        (('bandwidth = "silverman"', 'bandwith = "silverman"'), "localization.bandwith"),
+        (("[localization]", "[localization.nbp]"), "localization.nbp"),  # the earlier form
+        (
+            ('bandwidth = "silverman"', 'bandwidth = "silverman"\n[localization.pbp]\nn_inner = 0'),
+            "localization.pbp.n_inner",
+        ),
         (("n_samples = 40", "n_samples = 1"), "experiment.n_samples"),
         (('sample_methods = ["poa_nbp"]', 'sample_methods = ["wls"]'), "experiment.sample_methods"),
     ],

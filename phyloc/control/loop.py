@@ -169,9 +169,11 @@ def _pair(x, name):
 
 def make_estimator(name: str, options: dict, where: str = "localization"):
     """``(tracker class, options)`` of an estimation layer: ``"spbp"`` (the paper) or
-    ``"pfbp"``; ``options`` are the tracker's option keys."""
+    ``"pfbp"``; ``options`` are the tracker's option keys, or its options object."""
     v.choice(f"{where}.method", name, tuple(ESTIMATORS))
     cls, opt_cls = ESTIMATORS[name]
+    if isinstance(options, opt_cls):
+        return cls, options
     return cls, opt_cls.from_dict(dict(options), where)
 
 

@@ -3,9 +3,10 @@
 A recipe of ``kind = "control"`` runs ``experiment.trials`` Monte Carlo trials of the closed
 loop of :mod:`phyloc.control.loop` for every policy of ``experiment.policies``: the scenario is
 the ``[network]`` section (:class:`~phyloc.control.ControlScenario`; defaults: the FIM paper's
-case study), the estimation layer ``[localization] method = "spbp" | "pfbp"`` with that
-tracker's options. ``[experiment.variants.<label>]`` adds a policy under its own label
-(``policy = "fim_rh"``, ``horizon = 5``, ``search = "vbest"``, ``beam = 10``, …). Every trial's
+case study), the estimation layer ``experiment.estimator = "spbp" | "pfbp"`` with that
+tracker's options in ``[localization.<estimator>]``. ``[experiment.variants.<label>]`` adds a
+policy under its own label (``policy = "fim_rh"``, ``horizon = 5``, ``search = "vbest"``,
+``beam = 10``, …). Every trial's
 random stream is ``SeedSequence(seed).spawn(trials)[t]`` whatever the worker count or the
 grouping of trials into tasks (``experiment.task_trials``); the policies of a trial share its
 truth and noise draws.
@@ -42,10 +43,17 @@ from types import SimpleNamespace
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc.control.loop import ControlScenario, draw_trial, make_estimator, run_policy
+from phyloc.control.loop import (
+    ESTIMATORS,
+    ControlScenario,
+    draw_trial,
+    make_estimator,
+    run_policy,
+)
 from phyloc.control.policies import POLICIES, PolicySpec
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment, experiment_from_dict
+from phyloc.evaluation.methods import method_plan
 from phyloc.reporting import grouped_bars, new_figure, save_figure
 
 #: Squared errors of a diverged estimator count as this [m²] in the log-MSE means.
@@ -61,6 +69,10 @@ class ControlExperimentSpec:
     ----------
     trials : int
         Monte Carlo trials (the paper: 10 000).
+    estimator : str
+        Label of the estimation layer: ``"spbp"`` (the paper) or ``"pfbp"``, or a label whose
+        ``[localization.<label>]`` table names one (``method = ...``); its options are that
+        table's keys (and shared ``[localization]`` keys).
     policies : list of str
         Policy labels: ``static``, ``random``, ``fim_myopic``, ``fim_rh`` or variant labels.
     variants : dict
@@ -79,6 +91,7 @@ class ControlExperimentSpec:
     """
 
     trials: int = 100
+    estimator: str = "spbp"
     policies: tuple = POLICIES
     variants: dict = field(default_factory=dict)
     fim_rh: dict = field(default_factory=dict)
@@ -133,10 +146,28 @@ class ControlExperimentSpec:
         return out
 
 
-def _estimator(recipe):
-    loc = dict(recipe.section("localization"))
-    name = loc.pop("method", "spbp")
-    return name, loc
+def _estimator(recipe, exp):
+    """``(registered name, options)`` of the estimation layer: the label ``experiment.estimator``
+    and its ``[localization.<label>]`` table (:mod:`phyloc.evaluation.methods`)."""
+    loc = recipe.section("localization")
+    if "method" in loc:
+        raise ValidationError(
+            "localization.method",
+            loc["method"],
+            'name the estimator in [experiment]: estimator = "spbp" or "pfbp" (or a label '
+            'whose [localization.<label>] table holds method = "spbp" or "pfbp"), its options '
+            "in [localization.<label>]",
+        )
+    plan = method_plan(loc, (exp.estimator,), "tracking", labels_key="experiment.estimator")
+    name, opts = plan[exp.estimator]
+    if name not in ESTIMATORS:
+        where = (
+            f"localization.{exp.estimator}.method"
+            if name != exp.estimator
+            else "experiment.estimator"
+        )
+        raise ValidationError(where, name, f"one of {', '.join(ESTIMATORS)}")
+    return name, opts
 
 
 def _task(payload, _seed_seq):
@@ -348,8 +379,7 @@ class ControlExperiment(Experiment):
     def prepare(self, recipe, *, fast=False):
         exp = self.experiment_spec(recipe, fast=fast)
         scenario = ControlScenario.from_dict(dict(recipe.section("network")))
-        est_name, est_opts = _estimator(recipe)
-        make_estimator(est_name, est_opts)  # checked before any work
+        est_name, est_opts = _estimator(recipe, exp)  # checked before any work
         return SimpleNamespace(
             exp=exp,
             scenario=scenario,

@@ -16,8 +16,9 @@ those of the direct family (:data:`phyloc.localization.METHODS`), by default the
     ``sage_parametric``  two-step EL-DPF on SAGE ranges (Gaussian moments exchanged)
     ``sage_sampled``     sample-based SAGE (particle sets exchanged, Gaussian SAGE ranges)
 
-``[experiment.variants.<label>]`` adds a method under another label with its own options
-(``method = "<registered name>"`` plus option keys, e.g. ``n_particles = 400``).
+A label of ``experiment.methods`` that is not a registered name runs the method its
+``[localization.<label>]`` table names (``method = "<registered name>"`` plus option keys,
+e.g. ``n_particles = 400``), the grammar of every kind (:mod:`phyloc.evaluation.methods`).
 
 Figures, for every method label ``m`` and run ``e`` (errors: the absolute framework distance
 errors of DiPNet eq. (4), pooled over snapshots and realizations)::
@@ -94,10 +95,8 @@ class DirectTrackingExperimentSpec:
         ``{name: {"network": {...}}}``: each run's network table updates ``[network]``
         (subtables such as ``motion`` key by key). At least one run.
     methods : tuple of str
-        Method labels: registered direct-family methods or labels of ``variants``.
-    variants : dict
-        ``{label: {"method": name, <option>: value, ...}}``: a registered method under a new
-        label with options on top of ``[localization]``.
+        Method labels: registered direct-family methods, or labels whose
+        ``[localization.<label>]`` table names one (``method = ...``).
     realizations : int
         Independent realizations (network noise and channels) per run.
     particles_snapshot : int
@@ -112,7 +111,6 @@ class DirectTrackingExperimentSpec:
 
     runs: dict = field(default_factory=dict)
     methods: tuple = PAPER_METHODS
-    variants: dict = field(default_factory=dict)
     realizations: int = 1
     particles_snapshot: int = 0
     fast_speed_m_s: float = 2.0
@@ -130,26 +128,9 @@ class DirectTrackingExperimentSpec:
                     f"experiment.runs.{name}", run, "a table with a network table"
                 )
             check_keys(run, ["network"], f"experiment.runs.{name}")
-        if not isinstance(self.variants, dict):
-            raise ValidationError("experiment.variants", self.variants, "a table of labels")
-        direct = REGISTRY.family("direct")
-        for label, var in self.variants.items():
-            if not isinstance(var, dict) or var.get("method") not in direct:
-                raise ValidationError(
-                    f"experiment.variants.{label}.method",
-                    var.get("method") if isinstance(var, dict) else var,
-                    f"a direct-family method: {', '.join(direct)}",
-                )
         methods = tuple(self.methods)
         if not methods:
             raise ValidationError("experiment.methods", [], "at least one method")
-        for m in methods:
-            if m not in direct and m not in self.variants:
-                raise ValidationError(
-                    "experiment.methods",
-                    m,
-                    f"a direct-family method ({', '.join(direct)}) or a variant label",
-                )
         object.__setattr__(self, "methods", methods)
         v.integer("experiment.realizations", self.realizations, minimum=1)
         v.integer("experiment.particles_snapshot", self.particles_snapshot, minimum=0)
@@ -175,20 +156,19 @@ class DirectTrackingExperimentSpec:
         return out
 
     def plan(self, lspec: LocalizationSpec) -> dict:
-        """``{label: (registered name, options)}`` with ``particle_scale`` applied."""
+        """``{label: (registered name, options)}`` (:meth:`LocalizationSpec.plan
+        <phyloc.evaluation.sections.LocalizationSpec.plan>`) with ``particle_scale`` applied."""
+        plan = lspec.plan(self.methods)
+        if self.particle_scale == 1.0:
+            return plan
         out = {}
-        for label in self.methods:
-            if label in self.variants:
-                extra = dict(self.variants[label])
-                name = extra.pop("method")
-            else:
-                name, extra = label, {}
-            method = REGISTRY[name]
-            own = {**lspec.options, **lspec.method_options.get(name, {}), **extra}
-            opts = method.make_options(own, f"localization ({label})")
-            if isinstance(opts, DirectOptions) and self.particle_scale != 1.0:
+        for label, (name, opts) in plan.items():
+            if isinstance(opts, DirectOptions):
+                own = {k: x for k, x in lspec.method_options.get(label, {}).items()}
+                own.pop("method", None)
                 q = max(10, round(opts.dpf.n_particles * self.particle_scale))
-                opts = method.make_options({**own, "n_particles": q}, f"localization ({label})")
+                table = {**lspec.options, **own, "n_particles": q}
+                opts = REGISTRY[name].make_options(table, f"localization.{label}")
             out[label] = (name, opts)
         return out
 
@@ -459,6 +439,15 @@ class DirectTrackingExperiment(Experiment):
     )
 
     def prepare(self, recipe, *, fast=False):
+        raw = recipe.section("experiment")
+        for table, where in ((raw, "experiment"), (raw.get("fast"), "experiment.fast")):
+            if isinstance(table, dict) and "variants" in table:
+                raise ValidationError(
+                    f"{where}.variants",
+                    "a table",
+                    "a variant is a label of experiment.methods with a [localization.<label>] "
+                    'table: method = "<registered name>" and its options',
+                )
         exp = self.experiment_spec(recipe, fast=fast)
         lspec = recipe.section("localization", LocalizationSpec)
         return SimpleNamespace(

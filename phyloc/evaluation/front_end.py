@@ -193,11 +193,11 @@ def observable_pairs(net, t, links, detected, rng) -> np.ndarray:
 
 
 def _method_plan(methods, lspec):
-    """``[(label, registry name, options)]``: ``methods`` is a sequence of registered names
-    (options from ``[localization]``) or a mapping ``label -> (name, options)``."""
-    if isinstance(methods, dict):
-        return [(label, name, opts) for label, (name, opts) in methods.items()]
-    return [(m, m, lspec.options_for(m)) for m in methods]
+    """``[(label, registry name, options)]``: ``methods`` is a sequence of labels (options from
+    ``[localization]``, :meth:`~phyloc.evaluation.sections.LocalizationSpec.plan`) or a
+    mapping ``label -> (name, options)``."""
+    plan = methods if isinstance(methods, dict) else lspec.plan(methods)
+    return [(label, name, opts) for label, (name, opts) in plan.items()]
 
 
 def localize_realization(real, system, rspec, lspec, methods, inits, seed_seq, keep_particles=()):

@@ -147,14 +147,11 @@ class LocalizationExperimentSpec:
             raise ValidationError("experiment.agents", [], "at least one size >= 2")
         object.__setattr__(self, "agents", agents)
         v.integer("experiment.realizations", self.realizations, minimum=1)
-        direct = REGISTRY.family("direct")
-        if not tuple(self.methods):
-            raise ValidationError("experiment.methods", [], f"at least one of {', '.join(direct)}")
-        for m in self.methods:
-            if m not in direct:
-                raise ValidationError(
-                    "experiment.methods", m, f"each a direct-family method: {', '.join(direct)}"
-                )
+        if isinstance(self.methods, str) or not tuple(self.methods):
+            direct = REGISTRY.family("direct")
+            raise ValidationError(
+                "experiment.methods", list(self.methods), f"a list of labels: {', '.join(direct)}"
+            )
         for i in self.inits:
             if i not in INITS:
                 raise ValidationError("experiment.inits", i, f"each one of {', '.join(INITS)}")
@@ -245,6 +242,8 @@ class LocalizationExperiment(Experiment):
         nets = network_specs(recipe.section("network"), exp.agents)
         specs = scenario_specs(recipe.section("channel", ChannelSpec), exp.scenarios)
         lspecs = scenario_localization_specs(recipe, exp, lspec)
+        for spec in lspecs.values():  # every label a direct-family method (methods.py)
+            spec.plan(exp.methods)
         return LocalizationPlan(recipe.system, exp, rspec, lspec, lspecs, nets, specs)
 
     def tasks(self, plan: LocalizationPlan):
@@ -464,6 +463,7 @@ def dataset_specs(recipe, n_agents: int, n_realizations: int):
     )
     rspec = recipe.section("ranging", RangingSpec)
     lspec = recipe.section("localization", LocalizationSpec)
+    lspec.plan(exp.methods)  # every label a direct-family method, before any work
     return exp, rspec, lspec, token
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.localization import METHODS as REGISTRY
+from phyloc.evaluation.methods import method_plan
 from phyloc.localization import DirectOptions
 from phyloc.localization.initialization import PAIR_COMBINE
 from phyloc.network import NetworkSpec
@@ -184,10 +184,10 @@ class LocalizationSpec:
     start and of every method's likelihood (``LinkMeasurements.usable``). Every other
     key is an option of the direct family (:class:`~phyloc.localization.DirectOptions`: the
     :class:`~phyloc.localization.DPFOptions` fields, ``outlier_nats`` …), kept as written in
-    ``options``; a subtable
-    ``[localization.<method>]`` (``method_options``) holds the options of one method. A method
-    whose options are :class:`~phyloc.localization.DirectOptions` gets ``options`` updated by
-    its subtable, any other (a user's method) its subtable only (:meth:`options_for`).
+    ``options``, shared by every method whose options have them; a subtable
+    ``[localization.<label>]`` (``method_options``) holds one label's options and, for a label
+    that is not a registered name, ``method = "<registered name>"`` (:meth:`plan`, the method
+    grammar of every kind: :mod:`phyloc.evaluation.methods`).
     """
 
     options: dict = field(default_factory=dict)
@@ -221,9 +221,14 @@ class LocalizationSpec:
         object.__setattr__(self, "options", dict(self.options))
         object.__setattr__(self, "method_options", dict(self.method_options))
         DirectOptions.from_dict(self.options, "localization")  # names a bad key or value
-        for name in self.method_options:
-            if name in REGISTRY:
-                self.options_for(name)
+        self.plan(())  # every [localization.<label>] table, before any work
+
+    def plan(self, labels) -> dict:
+        """``{label: (registered name, options)}`` of the direct-family labels ``labels``
+        (:func:`~phyloc.evaluation.methods.method_plan`: shared keys, then the label's table;
+        the shared keys are checked against :class:`~phyloc.localization.DirectOptions`)."""
+        table = {**self.options, **self.method_options}
+        return method_plan(table, tuple(labels), "direct", check_shared=False)
 
     @classmethod
     def from_dict(cls, d: dict) -> LocalizationSpec:
@@ -238,13 +243,9 @@ class LocalizationSpec:
         sub = {k: d.pop(k) for k in list(d) if isinstance(d[k], dict)}
         return cls(options=d, method_options=sub, **own)
 
-    def options_for(self, name: str):
-        """The options of method ``name`` (``METHODS[name].make_options(...)``)."""
-        method = REGISTRY[name]
-        own = self.method_options.get(name, {})
-        if method.options is DirectOptions:
-            return method.make_options({**self.options, **own}, "localization")
-        return method.make_options(own, f"localization.{name}")
+    def options_for(self, label: str):
+        """The options of ``label`` (a registered name, or a label with a ``method`` key)."""
+        return self.plan((label,))[label][1]
 
     @property
     def dpf(self):

@@ -33,11 +33,13 @@ communication range, one-sided exponential ranging errors of mean 0.38 m, POA-NB
    The table columns follow the order of ``experiment.methods``.
 
    A method's options are its registered defaults (e.g. the proposal of an NBP variant),
-   updated by the recipe table of its options class (``[localization.nbp]``,
-   ``[localization.pbp]``, ``[localization.wls]``) and by ``[experiment]`` (``n_iterations``,
+   updated by the shared ``[localization]`` keys its options have (the NBP methods'
+   ``bandwidth``, ``uniform_fraction``, …), by ``[experiment]`` (``n_iterations``,
    ``n_samples``, ``poa_n_edges``, ``poa_n_fs``, ``baseline_start``) where the options have
-   those fields. Methods with POA support receive the proposal polygons computed for the
-   figures through their prior (so POA runs once per topology, on its own random stream).
+   those fields and by its ``[localization.<label>]`` table (``[localization.pbp]``,
+   ``[localization.wls]``; :mod:`phyloc.evaluation.methods`). Methods with POA support receive
+   the proposal polygons computed for the figures through their prior (so POA runs once per
+   topology, on its own random stream).
 3. **Samples** (POA-NBP Fig. 12): ``poa_nbp`` and ``nbp_min_entropy`` (or the methods of
    ``sample_methods``) at every ``N_S`` of ``experiment.sample_sweep``.
 
@@ -127,9 +129,9 @@ from types import SimpleNamespace
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
+from phyloc.evaluation.methods import method_plan as plan_methods
 from phyloc.evaluation.static_figures import (
     plot,
     summary_headers,
@@ -263,10 +265,7 @@ class StaticExperimentSpec:
         static = REGISTRY.family("static")
         if not methods:
             raise ValidationError(s + "methods", [], f"at least one of {', '.join(static)}")
-        for m in methods:
-            if m not in static:
-                raise ValidationError(s + "methods", m, f"each one of {', '.join(static)}")
-        object.__setattr__(self, "methods", methods)
+        object.__setattr__(self, "methods", methods)  # labels: checked by method_options
         sweep = tuple(v.integer(s + "sample_sweep", x, minimum=2) for x in self.sample_sweep)
         object.__setattr__(self, "sample_sweep", sweep)
         sampled = tuple(m for m in static if "n_samples" in _fields(REGISTRY[m].options))
@@ -307,39 +306,17 @@ def _fields(options_cls) -> set[str]:
     return {f.name for f in dataclasses.fields(options_cls)}
 
 
-def _section(method) -> str:
-    """The ``[localization.<section>]`` table of a method's options (default: its name)."""
-    return getattr(method.options, "recipe_section", method.name)
-
-
-def method_options(localization: dict, exp: StaticExperimentSpec, n_samples=None) -> dict:
-    """Options of every method of ``exp.methods``, by name: the method's registered defaults,
-    its ``[localization.<table>]`` (``nbp``, ``pbp``, ``wls``: the options' ``recipe_section``)
-    and the values of ``[experiment]`` (``n_iterations``, ``n_samples`` — or the argument
-    ``n_samples`` of a sweep —, ``poa_n_edges``, ``poa_n_fs``, ``baseline_start`` as
-    ``start``) where the options have those fields. Unknown keys name
-    ``localization.<table>.<key>``."""
-    static = [REGISTRY[m] for m in REGISTRY.family("static")]
-    tables = {_section(m): m for m in static}
-    check_keys(localization, list(tables), "localization")
-    for sec, raw in localization.items():
-        if not isinstance(raw, dict):
-            raise ValidationError(f"localization.{sec}", raw, "a table of method options")
-        for key in (*_FROM_EXPERIMENT, *_FROM_METHOD):
-            if key in raw:
-                raise ValidationError(
-                    f"localization.{sec}.{key}",
-                    raw[key],
-                    "is set by [experiment] (n_iterations, n_samples, poa_n_edges, poa_n_fs, "
-                    "baseline_start) or by the method name",
-                )
-        if sec not in {_section(REGISTRY[m]) for m in exp.methods}:
-            _options(tables[sec], localization, exp, n_samples)  # validate unused tables too
-    return {m: _options(REGISTRY[m], localization, exp, n_samples) for m in exp.methods}
-
-
-def _options(method, localization: dict, exp: StaticExperimentSpec, n_samples=None):
-    sec = _section(method)
+def method_options(
+    localization: dict, exp: StaticExperimentSpec, n_samples=None, labels=None
+) -> dict:
+    """Options of every label of ``exp.methods``
+    (:func:`phyloc.evaluation.methods.method_plan`): the method's registered defaults, the
+    shared ``[localization]`` keys its options have (e.g. the NBP methods' ``bandwidth``), the
+    values of ``[experiment]`` (``n_iterations``, ``n_samples`` — or the argument ``n_samples``
+    of a sweep —, ``poa_n_edges``, ``poa_n_fs``, ``baseline_start`` as ``start``) where the
+    options have those fields, and the label's ``[localization.<label>]`` table (``pbp``,
+    ``wls``, …). Unknown keys name ``localization.<key>`` or ``localization.<label>.<key>``.
+    ``labels`` (default ``exp.methods``) selects other labels, e.g. those of the sweep."""
     values = {
         "n_iterations": exp.n_iterations,
         "n_samples": exp.n_samples if n_samples is None else n_samples,
@@ -347,14 +324,22 @@ def _options(method, localization: dict, exp: StaticExperimentSpec, n_samples=No
         "poa_n_fs": exp.poa_n_fs,
         "start": exp.baseline_start,
     }
-    fields = _fields(method.options)
-    extra = {k: x for k, x in values.items() if k in fields}
-    try:
-        return method.make_options({**localization.get(sec, {}), **extra}, f"localization.{sec}")
-    except ValidationError as exc:
-        if exc.field.startswith("localization"):
-            raise
-        raise ValidationError(f"localization.{sec}.{exc.field}", exc.value, exc.allowed) from None
+    plan = plan_methods(
+        localization,
+        exp.methods if labels is None else labels,
+        "static",
+        check_shared=labels is None,
+        experiment_values=values,
+        forbidden=_FROM_METHOD,
+        old_tables={"nbp": _OLD_NBP_TABLE},
+    )
+    return {label: opts for label, (_, opts) in plan.items()}
+
+
+_OLD_NBP_TABLE = (
+    "the NBP methods' shared options are [localization] keys now (e.g. [localization] "
+    'bandwidth = "lscv"); a [localization.<label>] table holds one label\'s options'
+)
 
 
 def _errors(res, truth_agents):
@@ -431,11 +416,12 @@ def _task(payload, seed_seq):
             region=sc.region,
         ).area_history
     # 2. localization (Fig. 10, 11, Table I)
+    options = method_options(localization, exp)
     s = 3
     for m in exp.methods:
         mrng = np.random.default_rng(streams[s])
         s += 1
-        res = _run_method(m, meas, priors, _options(REGISTRY[m], localization, exp), mrng)
+        res = _run_method(m, meas, priors, options[m], mrng)
         out[f"{m}|err"] = _errors(res, truth)
         out[f"{m}|time"] = float(np.mean(res.timing.agent_s))
         out[f"{m}|t_support"] = float(res.diagnostics.get("setup_time_per_node_s", 0.0))
@@ -445,7 +431,7 @@ def _task(payload, seed_seq):
         for ns in exp.sample_sweep:
             mrng = np.random.default_rng(streams[s])
             s += 1
-            opts = _options(REGISTRY[m], localization, exp, ns)
+            opts = method_options(localization, exp, ns, labels=(m,))[m]
             res = _run_method(m, meas, priors, opts, mrng)
             out[f"{m}|ns{ns}|err"] = _errors(res, truth)[-1]
             out[f"{m}|ns{ns}|time"] = float(np.mean(res.timing.agent_s))

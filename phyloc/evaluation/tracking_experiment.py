@@ -126,6 +126,7 @@ from phyloc.analysis.pcrlb import pcrlb
 from phyloc.channels import ChannelSpec
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
+from phyloc.evaluation.methods import method_plan as plan_methods
 from phyloc.evaluation.range_scenarios import flow_example
 from phyloc.evaluation.sections import RangingSpec, scenario_specs
 from phyloc.evaluation.tracking_figures import (
@@ -312,62 +313,21 @@ class TrackingExperimentSpec:
         return RangeModel(self.motion, self.dim, self.dt_s, self.accel_std, self.sigma_r)
 
 
+def method_plan(localization: dict, exp: TrackingExperimentSpec) -> dict:
+    """``{label: (registered name, options)}`` of ``experiment.methods``
+    (:func:`phyloc.evaluation.methods.method_plan`): shared ``[localization]`` keys, the
+    label's ``[localization.<label>]`` table, then ``experiment.method_options.<label>``."""
+    return plan_methods(localization, exp.methods, FAMILY, overrides=exp.method_options)
+
+
 def method_bases(localization: dict, exp: TrackingExperimentSpec) -> dict:
-    """The registered method each name of ``experiment.methods`` runs: itself, or for a
-    variant the ``method`` key of its ``[localization.<name>]`` table. Unknown names and
-    tables are errors naming ``experiment.methods`` / ``localization.<name>``."""
-    known = METHODS.family(FAMILY)
-    variants = {}
-    for name, table in localization.items():
-        if isinstance(table, dict) and "method" in table:
-            base = table["method"]
-            if name in known:
-                raise ValidationError(
-                    f"localization.{name}.method", base, "no 'method' key: a registered name"
-                )
-            if base not in known:
-                raise ValidationError(
-                    f"localization.{name}.method", base, f"one of {', '.join(known)}"
-                )
-            variants[name] = base
-    check_keys(localization, [*known, *variants], "localization")
-    bases = {}
-    for m in exp.methods:
-        if m not in known and m not in variants:
-            raise ValidationError(
-                "experiment.methods",
-                m,
-                f"each one of {', '.join(known)}, or a variant: a [localization.{m}] table "
-                'with method = "<one of those>"',
-            )
-        bases[m] = variants.get(m, m)
-    return bases
+    """The registered method each label of ``experiment.methods`` runs."""
+    return {label: name for label, (name, _) in method_plan(localization, exp).items()}
 
 
 def method_options(localization: dict, exp: TrackingExperimentSpec) -> dict:
-    """Options object of every method: ``[localization.<m>]`` updated by
-    ``experiment.method_options``; unknown keys are errors naming ``localization.<m>.<key>``
-    (a variant's table without its ``method`` key, see :func:`method_bases`)."""
-    localization = dict(localization)
-    bases = method_bases(localization, exp)
-    out = {}
-    for m in exp.methods:
-        raw = localization.get(m, {})
-        if not isinstance(raw, dict):
-            raise ValidationError(f"localization.{m}", raw, "a table of method options")
-        raw = {k: x for k, x in raw.items() if k != "method"}
-        over = exp.method_options.get(m, {})
-        if not isinstance(over, dict):
-            raise ValidationError(f"experiment.method_options.{m}", over, "a table of options")
-        method = METHODS[bases[m]]
-        try:
-            out[m] = method.make_options(raw, section=f"localization.{m}")
-            out[m] = method.make_options({**raw, **over}, section=f"experiment.method_options.{m}")
-        except ValidationError as exc:
-            if exc.field.startswith(("localization", "experiment")):
-                raise
-            raise ValidationError(f"localization.{m}.{exc.field}", exc.value, exc.allowed) from None
-    return out
+    """The options object of every label of ``experiment.methods``."""
+    return {label: opts for label, (_, opts) in method_plan(localization, exp).items()}
 
 
 def _task(payload, seed_seq):
@@ -497,8 +457,9 @@ class TrackingExperiment(Experiment):
     def prepare(self, recipe, *, fast=False):
         exp = self.experiment_spec(recipe, fast=fast)
         exp.model()  # validates the model
-        options = method_options(recipe.section("localization"), exp)
-        bases = method_bases(recipe.section("localization"), exp)
+        plan = method_plan(recipe.section("localization"), exp)
+        options = {label: opts for label, (_, opts) in plan.items()}
+        bases = {label: name for label, (name, _) in plan.items()}
         extra = None
         if exp.measurements == "sage":
             chan = recipe.section("channel", ChannelSpec)

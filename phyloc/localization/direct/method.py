@@ -170,6 +170,12 @@ class DirectOptions:
         object.__setattr__(self, "keep_particles", keep)
 
     @classmethod
+    def recipe_keys(cls) -> list[str]:
+        """The keys of a flat recipe table: :class:`DPFOptions`'s and this class's own."""
+        own = [f.name for f in dataclasses.fields(cls) if f.name != "dpf"]
+        return [*(f.name for f in dataclasses.fields(DPFOptions)), *own]
+
+    @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> DirectOptions:
         """From a flat recipe table: this class's keys and those of :class:`DPFOptions`."""
         own = [f.name for f in dataclasses.fields(cls) if f.name != "dpf"]

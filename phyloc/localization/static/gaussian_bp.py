@@ -52,7 +52,6 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 
@@ -214,7 +213,6 @@ class GaussianBPOptions:
     """
 
     #: The recipe table of these options: ``[localization.pbp]``.
-    recipe_section: ClassVar[str] = "pbp"
 
     n_iterations: int = 10
     n_inner: int = 3
@@ -411,7 +409,6 @@ class WLSOptions:
     """
 
     #: The recipe table of these options: ``[localization.wls]``.
-    recipe_section: ClassVar[str] = "wls"
 
     n_iterations: int = 20
     mode: str = "joint"

@@ -122,7 +122,6 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass
-from typing import ClassVar
 
 import numpy as np
 
@@ -159,7 +158,8 @@ SUPPORTS = ("none", "poa", "ellipse")
 
 @dataclass(frozen=True)
 class NBPOptions:
-    """Options of :func:`run_nbp` (recipe table ``[localization.nbp]``).
+    """Options of :func:`run_nbp` (shared ``[localization]`` keys of a static recipe, or one
+    label's ``[localization.<label>]`` table).
 
     Parameters
     ----------
@@ -204,9 +204,6 @@ class NBPOptions:
     stop_on_convergence : bool
         End the run at the convergence iteration (False: run ``n_iterations``).
     """
-
-    #: The recipe table of these options: ``[localization.nbp]``.
-    recipe_section: ClassVar[str] = "nbp"
 
     n_samples: int = 200
     n_iterations: int = 10
