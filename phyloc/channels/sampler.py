@@ -65,7 +65,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys, check_types
+from phyloc._validate import from_table
 from phyloc.channels.scenario import (
     CONDITIONS,
     AwgnCondition,
@@ -598,9 +598,7 @@ class ChannelSpec:
     @classmethod
     def from_dict(cls, d: dict, *, section: str = "channel") -> ChannelSpec:
         """Build from a recipe section; unknown keys name the closest valid key."""
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        check_types(cls, d, section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
     def to_dict(self) -> dict:
         """The fields as a plain dict (``None`` entries dropped: TOML has no null)."""

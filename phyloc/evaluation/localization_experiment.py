@@ -150,7 +150,7 @@ class LocalizationExperimentSpec:
         if isinstance(self.methods, str) or not tuple(self.methods):
             direct = REGISTRY.family("direct")
             raise ValidationError(
-                "experiment.methods", list(self.methods), f"a list of labels: {', '.join(direct)}"
+                "experiment.methods", list(self.methods), f"at least one of {', '.join(direct)}"
             )
         for i in self.inits:
             if i not in INITS:

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys, check_types
+from phyloc._validate import from_table
 from phyloc.errors import ValidationError
 
 #: Motion models understood by :class:`MotionSpec` and :func:`simulate_motion`.
@@ -213,9 +213,7 @@ class MotionSpec:
         """Build from a recipe section; unknown keys are errors naming the closest valid key."""
         if not isinstance(d, dict):
             raise ValidationError(section, d, "must be a table (dict) of motion settings")
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        check_types(cls, d, section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
     def to_dict(self) -> dict:
         """The init fields as a plain dict (recipe form: tuples become lists).

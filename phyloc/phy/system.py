@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
+from phyloc._validate import from_table
 from phyloc.errors import ValidationError
 
 #: Speed of light in vacuum [m/s].
@@ -186,10 +187,7 @@ class OFDMSystem:
     @classmethod
     def from_dict(cls, d: dict, *, section: str = "system") -> OFDMSystem:
         """Build from a recipe section; unknown keys are errors naming the closest valid key."""
-        allowed = [f.name for f in dataclasses.fields(cls)]
-        v.check_keys(d, allowed, section)
-        v.check_types(cls, d, section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
     def to_dict(self) -> dict:
         """The init fields as a plain dict (recipe form)."""

@@ -53,14 +53,13 @@ cooperative localization and navigation with embedded particle flow."
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import from_table
 from phyloc.analysis.efim import direction_vectors, position_crb
 from phyloc.errors import ValidationError
 from phyloc.localization import particles as P
@@ -142,9 +141,7 @@ class DPFOptions:
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> DPFOptions:
         """From a recipe table (unknown keys are errors)."""
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        v.check_types(cls, d, section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
     def gamma(self, k: int) -> float:
         """Tempering exponent of iteration k (1-based)."""

@@ -48,7 +48,6 @@ indoor localization."
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -56,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import from_table
 from phyloc.errors import ValidationError
 from phyloc.localization.initialization import coarse_positions
 from phyloc.localization.results import Result, Timing
@@ -234,8 +233,7 @@ class GaussianBPOptions:
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> GaussianBPOptions:
         """Build from a recipe table; unknown keys are errors naming the closest valid key."""
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
 
 def gaussian_bp_update(x0, prior_mean, prior_info, nb_mean, nb_cov, z, b, s2, n_inner, region):
@@ -432,8 +430,7 @@ class WLSOptions:
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> WLSOptions:
         """Build from a recipe table; unknown keys are errors naming the closest valid key."""
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
 
 def _wls_terms(net: StaticNetwork, link_mode: str, w_matrix, s2):

@@ -118,7 +118,6 @@ indoor localization."
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -126,7 +125,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import from_table
 from phyloc.errors import ValidationError
 from phyloc.localization.particles import systematic_indices
 from phyloc.localization.results import Result, Timing
@@ -254,8 +253,7 @@ class NBPOptions:
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> NBPOptions:
         """Build from a recipe table; unknown keys are errors naming the closest valid key."""
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
 
 def _check_polygons(polygons, net: StaticNetwork):

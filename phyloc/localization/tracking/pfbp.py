@@ -38,14 +38,13 @@ cooperative localization and navigation with embedded particle flow."
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import block_diag
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import from_table
 from phyloc.errors import ValidationError
 from phyloc.localization.particles import regularize, resample_permute
 from phyloc.localization.results import Result
@@ -124,8 +123,7 @@ class PFBPOptions:
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> PFBPOptions:
         """Build from a recipe table; unknown keys are errors naming the closest valid key."""
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
 
 def run_pfbp(

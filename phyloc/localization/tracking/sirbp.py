@@ -23,13 +23,12 @@ cooperative localization and navigation with embedded particle flow."
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import from_table
 from phyloc.errors import ValidationError
 from phyloc.localization.particles import regularize, resample_permute
 from phyloc.localization.results import Result
@@ -91,8 +90,7 @@ class SIRBPOptions:
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> SIRBPOptions:
         """Build from a recipe table; unknown keys are errors naming the closest valid key."""
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
 
 def run_sirbp(

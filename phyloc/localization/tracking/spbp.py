@@ -42,14 +42,13 @@ Processing Letters 21(2), pp. 145–149, 2014.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import block_diag
 
 from phyloc import _validate as v
-from phyloc._validate import check_keys
+from phyloc._validate import from_table
 from phyloc.errors import ValidationError
 from phyloc.localization.results import Result
 from phyloc.localization.tracking import _flow
@@ -106,8 +105,7 @@ class SPBPOptions:
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> SPBPOptions:
         """Build from a recipe table; unknown keys are errors naming the closest valid key."""
-        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)
-        return cls(**d)
+        return from_table(cls, d, section)
 
 
 def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_out):
