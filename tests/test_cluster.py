@@ -12,28 +12,16 @@ import time
 
 import pytest
 from test_cli import TINY
+from tiny import tiny_recipe
 
 import phyloc.datasets as pds
 from phyloc.cli import main
 
 pytestmark = pytest.mark.cluster
 
-DATASET = """
-kind = "dataset"
-name = "cl"
-seed = 21
-[system]
-n_subcarriers = 257
-subcarrier_spacing_hz = 146.5e3
-[network]
-n_agents = 4
-region_m = [60.0, 60.0]
-[channel]
-scenario = "winner2_c2"
-[dataset]
-realizations = 16
-shard_size = 1
-"""
+DATASET = tiny_recipe(
+    "dataset", "cl", 21, ranging=None, dataset={"realizations": 16, "shard_size": 1}
+)
 
 # test_cli's tiny ranging recipe with enough realizations to spread over both workers
 RANGING = TINY.replace('name = "tiny"', 'name = "clr"').replace(

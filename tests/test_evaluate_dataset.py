@@ -2,28 +2,15 @@
 
 import numpy as np
 import pytest
+from tiny import tiny_recipe
 
 from phyloc.config import load_recipe
 from phyloc.datasets import generate
 from phyloc.evaluation import localization_experiment as lx
 
-COMMON = """
-seed = 77
-[system]
-n_subcarriers = 257
-subcarrier_spacing_hz = 146.5e3
-[network]
-n_agents = 4
-region_m = [60.0, 60.0]
-[channel]
-scenario = "winner2_c2"
-[ranging]
-window_m = [0.0, 200.0]
-[localization]
-n_particles = 300
-n_iterations = 3
-resample_move = false
-"""
+COMMON = tiny_recipe(
+    seed=77, localization={"n_particles": 300, "n_iterations": 3, "resample_move": False}
+)
 
 DATASET = (
     'kind = "dataset"\nname = "tiny"\n'

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from tiny import tiny_recipe
 
 from phyloc.errors import ValidationError
 from phyloc.localization import (
@@ -213,33 +214,19 @@ def _shrink(measurements, prior, rng, options):
     return Result(mean[None], None, Timing(0.0, np.zeros(1), np.zeros(1)), label=prior.label)
 
 
-RECIPE = """
-kind = "localization"
-name = "tiny_user"
-seed = 5
-[system]
-n_subcarriers = 257
-subcarrier_spacing_hz = 146.5e3
-[network]
-n_agents = 4
-region_m = [60.0, 60.0]
-[channel]
-scenario = "winner2_c2"
-[ranging]
-window_m = [0.0, 200.0]
-[localization]
-n_particles = 100
-n_iterations = 2
-[localization.shrink_test]
-factor = 1.0
-[experiment]
-scenarios = { c2 = "winner2_c2" }
-agents = [4]
-realizations = 1
-methods = ["shrink_test", "corr"]
-inits = ["truth_free"]
-cdf_agents = [4]
-"""
+RECIPE = tiny_recipe(
+    "localization",
+    "tiny_user",
+    localization={"n_particles": 100, "n_iterations": 2, "shrink_test": {"factor": 1.0}},
+    experiment={
+        "scenarios": {"c2": "winner2_c2"},
+        "agents": [4],
+        "realizations": 1,
+        "methods": ["shrink_test", "corr"],
+        "inits": ["truth_free"],
+        "cdf_agents": [4],
+    },
+)
 
 
 def test_a_users_direct_method_runs_in_the_localization_experiment(monkeypatch):

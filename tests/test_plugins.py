@@ -7,44 +7,34 @@ import math
 from pathlib import Path
 
 import pytest
+from tiny import tiny_recipe
 
 from phyloc.cli import main
 from phyloc.localization import METHODS
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "prior_mean_method.py"
 
-RECIPE = """
-kind = "localization"
-name = "tiny_plugin"
-seed = 5
-[system]
-n_subcarriers = 257
-subcarrier_spacing_hz = 146.5e3
-[network]
-n_agents = 4
-region_m = [60.0, 60.0]
-[channel]
-scenario = "winner2_c2"
-[ranging]
-window_m = [0.0, 200.0]
-[localization]
-n_particles = 100
-n_iterations = 2
-[localization.prior_mean]
-shrink = SHRINK
-[experiment]
-scenarios = { c2 = "winner2_c2" }
-agents = [4]
-realizations = 2
-methods = ["prior_mean", "corr"]
-inits = ["truth_free"]
-cdf_agents = [4]
-"""
+
+def _recipe(**prior_mean) -> str:
+    """The tiny recipe running the example plugin ``prior_mean`` (options ``prior_mean``)."""
+    return tiny_recipe(
+        "localization",
+        "tiny_plugin",
+        localization={"n_particles": 100, "n_iterations": 2, "prior_mean": prior_mean},
+        experiment={
+            "scenarios": {"c2": "winner2_c2"},
+            "agents": [4],
+            "realizations": 2,
+            "methods": ["prior_mean", "corr"],
+            "inits": ["truth_free"],
+            "cdf_agents": [4],
+        },
+    )
 
 
 def _evaluate(tmp_path, name, shrink=1.0, extra=()):
     recipe = tmp_path / f"{name}.toml"
-    recipe.write_text(RECIPE.replace("SHRINK", repr(shrink)))
+    recipe.write_text(_recipe(shrink=shrink))
     out = tmp_path / name
     code = main(["evaluate", str(recipe), "--out", str(out), "--no-progress", *extra])
     return code, out
@@ -103,7 +93,7 @@ def test_unregistered_method_and_bad_plugin_are_one_line_errors(tmp_path, capsys
 
 def test_unknown_option_of_a_plugin_method_names_the_key(tmp_path, capsys):
     recipe = tmp_path / "typo.toml"
-    recipe.write_text(RECIPE.replace("shrink = SHRINK", "shrnk = 0.5"))
+    recipe.write_text(_recipe(shrnk=0.5))
     code = main(["evaluate", str(recipe), "--out", str(tmp_path / "t"), "--plugin", str(EXAMPLE)])
     assert code == 2
     err = capsys.readouterr().err
