@@ -139,7 +139,11 @@ def start_prior(init, net, links, corr, lspec, Q, rng):
         std, label = lspec.informed_std_m, "informed start"
     else:
         anchors = pos[net.is_anchor] if net.n_anchors else None
-        robust = {
+        args = (links, corr.range_m, net.n_nodes, net.dim)
+        kw = {
+            "valid": corr.valid,
+            "is_anchor": net.is_anchor,
+            "anchor_positions": anchors,
             "combine": lspec.init_pair_range,
             "robust_scale_m": tuple(c for c in lspec.init_robust_scale_m if c > 0) or None,
             "n_restarts": lspec.init_restarts,
@@ -147,31 +151,12 @@ def start_prior(init, net, links, corr, lspec, Q, rng):
             "rng": rng,
         }
         try:
-            sol = coarse_positions(
-                links,
-                corr.range_m,
-                net.n_nodes,
-                net.dim,
-                valid=corr.valid,
-                is_anchor=net.is_anchor,
-                anchor_positions=anchors,
-                **robust,
-            )
+            sol = coarse_positions(*args, **kw)
         except ValidationError:
             # some node has no detected range: undetected links join in with their strongest
             # peak at a weight of UNDETECTED_WEIGHT, placing the disconnected nodes (a guess:
             # their pairs are unobservable) without bending the detected part of the network
-            sol = coarse_positions(
-                links,
-                corr.range_m,
-                net.n_nodes,
-                net.dim,
-                valid=corr.valid,
-                invalid_weight=UNDETECTED_WEIGHT,
-                is_anchor=net.is_anchor,
-                anchor_positions=anchors,
-                **robust,
-            )
+            sol = coarse_positions(*args, invalid_weight=UNDETECTED_WEIGHT, **kw)
         centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
     X = gaussian_priors(centers, std, Q, rng)
     return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label), centers
