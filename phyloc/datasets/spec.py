@@ -21,7 +21,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from phyloc import _validate as v
-from phyloc._validate import from_table
+from phyloc._validate import check_keys, from_table
 from phyloc.errors import ValidationError
 
 COMPRESSIONS = ("none", "gzip", "lzf")
@@ -103,6 +103,7 @@ class DatasetSpec:
         """Build from the ``[dataset]`` table; unknown keys name the closest valid key."""
         if not isinstance(d, dict):
             raise ValidationError(section, d, "must be a table of dataset settings")
+        check_keys(d, [f.name for f in dataclasses.fields(cls)], section)  # typos first
         if "realizations" not in d:
             raise ValidationError(
                 f"{section}.realizations", None, "is required (number of realizations, >= 1)"
