@@ -478,3 +478,61 @@ def test_agents_m_validation_names_the_key(agents, text):
     with pytest.raises(ValidationError, match=text) as err:
         NetworkSpec.from_dict({"n_agents": 3, "agents_m": agents})
     assert err.value.field == "network.agents_m"
+
+
+@pytest.mark.parametrize("n", [30, 120, 1000])
+def test_constant_density_region_holds_n_agents_at_the_density(n):
+    spec = NetworkSpec.from_dict({"n_agents": n, "density_per_km2": 3000.0})
+    side = spec.region_m[0]
+    assert spec.region_m == (side, side)
+    assert n / (side * side / 1e6) == pytest.approx(3000.0, rel=1e-12)
+    net = make_network(spec.replace(on_isolated="allow"), np.random.default_rng(3))
+    assert np.all((net.positions >= 0) & (net.positions <= side))
+
+
+def test_constant_density_keeps_the_mean_neighbour_count():
+    """At fixed density and range the interior neighbour count is ρπR² whatever N (the
+    border lowers the mean less as the network grows)."""
+    rng = np.random.default_rng(11)
+    means = []
+    for n in (300, 1200):
+        spec = NetworkSpec.from_dict(
+            {"n_agents": n, "density_per_km2": 3000.0, "comm_range_m": 50.0}
+        )
+        net = make_network(spec, rng)
+        side = spec.region_m[0]
+        p = net.positions[0]
+        inner = np.all((p > 50.0) & (p < side - 50.0), axis=1)
+        deg = np.bincount(net.links[:, 0], minlength=n)
+        means.append(deg[inner].mean())
+    expected = 3000e-6 * math.pi * 50.0**2  # 23.6
+    for m in means:
+        assert m == pytest.approx(expected, rel=0.12)
+
+
+def test_density_excludes_region_and_3d_and_round_trips():
+    with pytest.raises(ValidationError, match="network.region_m"):
+        NetworkSpec.from_dict({"n_agents": 5, "density_per_km2": 10.0, "region_m": [9, 9]})
+    with pytest.raises(ValidationError, match=r"density_per_km2"):
+        NetworkSpec.from_dict({"n_agents": 5, "dim": 3, "density_per_km2": 10.0})
+    with pytest.raises(ValidationError, match=r"density_per_km2"):
+        NetworkSpec.from_dict({"n_agents": 5, "density_per_km2": 0.0})
+    spec = NetworkSpec.from_dict({"n_agents": 50, "density_per_km2": 3000.0})
+    assert "region_m" not in spec.to_dict()
+    assert NetworkSpec.from_dict(spec.to_dict()) == spec
+    bigger = spec.replace(n_agents=200)  # the region follows the size
+    assert bigger.region_m[0] == pytest.approx(2 * spec.region_m[0])
+
+
+def test_range_limited_neighbours_and_isolated_nodes_match_the_matrix():
+    spec = NetworkSpec.from_dict(
+        {"n_agents": 60, "anchors": 4, "comm_range_m": 22.0, "on_isolated": "allow"}
+    )
+    net = make_network(spec, np.random.default_rng(5))
+    D = net.distance_matrix()
+    adj = (D <= 22.0) & ~np.eye(net.n_nodes, dtype=bool)
+    adj &= ~(net.is_anchor[:, None] & net.is_anchor[None, :])
+    assert np.array_equal(net.adjacency(), adj)
+    for u in (0, 17, 61):
+        assert net.neighbors(u).tolist() == np.flatnonzero(adj[u]).tolist()
+    assert net.isolated_nodes().tolist() == np.flatnonzero(~adj.any(axis=1)).tolist()

@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 import warnings
 from dataclasses import dataclass, field
 
@@ -214,7 +215,16 @@ class NetworkSpec:
         ``"corners"``.
     comm_range_m : float, optional
         Communication range [m], > 0: two nodes are neighbours at a snapshot when their
-        distance is <= this range. ``None`` (default): fully meshed.
+        distance is <= this range. ``None`` (default): fully meshed. Links of a range-limited
+        network are found with a k-d tree (:class:`scipy.spatial.cKDTree`), in
+        ``O(n log n + n_links)``: no ``n × n`` matrix is built, so networks of thousands of
+        nodes cost what their links cost.
+    density_per_km2 : float, optional
+        Constant-density deployment (2-D only): the region is the square that holds
+        ``n_agents`` at this many agents per km² — side ``sqrt(n_agents / density) km`` —
+        so networks of any size have the same density and, with ``comm_range_m``, the same
+        mean number of neighbours (``density · π · comm_range² `` away from the border).
+        30 agents per 100 m × 100 m is ``3000``. Excludes ``region_m``.
     on_isolated : {"error", "warn", "allow"}
         What :func:`make_network` does when, at some snapshot, a node has no neighbour:
         raise :class:`~phyloc.errors.ValidationError` naming the nodes and the range
@@ -252,6 +262,7 @@ class NetworkSpec:
     on_isolated: str = "error"
     motion: MotionSpec = field(default_factory=MotionSpec)
     agents_m: tuple[tuple[float, ...], ...] | None = None
+    density_per_km2: float | None = None
 
     def __post_init__(self):
         s = "network"
@@ -263,6 +274,15 @@ class NetworkSpec:
         object.__setattr__(self, "dim", dim)
 
         region = (DEFAULT_SIDE_M,) * dim if self.region_m is None else self.region_m
+        if self.density_per_km2 is not None:
+            rho = v.positive(f"{s}.density_per_km2", self.density_per_km2)
+            if dim != 2:
+                raise ValidationError(
+                    f"{s}.density_per_km2", rho, "is a 2-D deployment (network.dim = 2)"
+                )
+            object.__setattr__(self, "density_per_km2", rho)
+            side = 1000.0 * math.sqrt(n_agents / rho)
+            region = (side, side)
         try:
             region = tuple(float(x) for x in region)
         except (TypeError, ValueError):
@@ -372,6 +392,13 @@ class NetworkSpec:
         check_types(cls, d, section)
         if "n_agents" not in d:
             raise ValidationError(f"{section}.n_agents", None, "is required (number of agents)")
+        if "density_per_km2" in d and "region_m" in d:
+            raise ValidationError(
+                f"{section}.region_m",
+                d["region_m"],
+                "cannot be given with density_per_km2 (the density sets the region); "
+                "delete one of the two",
+            )
         d = dict(d)
         if "motion" in d:
             d["motion"] = MotionSpec.from_dict(d["motion"], section=f"{section}.motion")
@@ -382,7 +409,7 @@ class NetworkSpec:
         out = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if value is None:
+            if value is None or (f.name == "region_m" and self.density_per_km2 is not None):
                 continue
             if f.name == "motion":
                 value = value.to_dict()
@@ -525,11 +552,29 @@ class Network:
         """
         k = self._snapshot(snapshot)
         n = self.n_nodes
+        if self.comm_range_m is not None:
+            adj = np.zeros((n, n), dtype=bool)
+            lk = self.links_at(k)
+            adj[lk[:, 0], lk[:, 1]] = True
+            return adj
         adj = ~np.eye(n, dtype=bool)
         adj &= ~(self.is_anchor[:, None] & self.is_anchor[None, :])
-        if self.comm_range_m is not None:
-            adj &= self.distance_matrix(k) <= self.comm_range_m
         return adj
+
+    def _range_links(self, k: int) -> np.ndarray:
+        """Directed links of a range-limited snapshot, sorted by ``(u, v)``: candidate pairs
+        from a k-d tree, kept by the same test as :meth:`adjacency` (``‖p_u − p_v‖ <=
+        comm_range_m``, computed as :meth:`distance_matrix` computes it)."""
+        from scipy.spatial import cKDTree
+
+        p = self.positions[k]
+        r = self.comm_range_m
+        pairs = cKDTree(p).query_pairs(r * (1.0 + 1e-9) + 1e-12, output_type="ndarray")
+        pairs = pairs.astype(np.int64).reshape(-1, 2)
+        d = np.linalg.norm(p[pairs[:, 0]] - p[pairs[:, 1]], axis=-1)
+        pairs = pairs[(d <= r) & ~(self.is_anchor[pairs[:, 0]] & self.is_anchor[pairs[:, 1]])]
+        links = np.concatenate([pairs, pairs[:, ::-1]])
+        return links[np.lexsort((links[:, 1], links[:, 0]))]
 
     def links_at(self, snapshot: int) -> np.ndarray:
         """Directed links ``(u, v)`` ("u receives from v") at a snapshot.
@@ -541,7 +586,10 @@ class Network:
         """
         k = self._snapshot(snapshot)
         if k not in self._links:
-            links = np.argwhere(self.adjacency(k)).astype(np.int64)
+            if self.comm_range_m is None:
+                links = np.argwhere(self.adjacency(k)).astype(np.int64)
+            else:
+                links = self._range_links(k)
             links.setflags(write=False)
             self._links[k] = links
         return self._links[k]
@@ -563,11 +611,14 @@ class Network:
         u = v.integer("u", u)
         if not 0 <= u < self.n_nodes:
             raise ValidationError("u", u, f"must be a node index in [0, {self.n_nodes})")
-        return np.flatnonzero(self.adjacency(snapshot)[u]).astype(np.int64)
+        lk = self.links_at(snapshot)
+        return lk[lk[:, 0] == u, 1].copy()
 
     def isolated_nodes(self, snapshot: int = 0) -> np.ndarray:
         """Nodes without any neighbour at a snapshot, ascending int64."""
-        return np.flatnonzero(~self.adjacency(snapshot).any(axis=1)).astype(np.int64)
+        heard = np.zeros(self.n_nodes, bool)
+        heard[self.links_at(snapshot)[:, 0]] = True
+        return np.flatnonzero(~heard).astype(np.int64)
 
 
 def _report_isolated(net: Network, spec: NetworkSpec) -> None:
