@@ -89,13 +89,19 @@ def _frames(est, true, is_anchor, missing):
 
 
 def framework_distance_errors(
-    est, true, is_anchor=None, *, missing: str = "error", return_pairs: bool = False
+    est, true, is_anchor=None, *, missing: str = "error", return_pairs: bool = False, pairs=None
 ):
     """Absolute framework distance errors ``ε_uv = |d̂_uv − d_uv|`` (DiPNet eq. (4) summands).
 
     Following the double sum of DiPNet eq. (4) exactly, ``u`` runs over the agents and ``v``
     over every other node: an agent–agent pair appears twice, as ``(u, v)`` and ``(v, u)``, an
     agent–anchor pair once, an anchor–anchor pair never. All pairs count, linked or not.
+
+    With ``pairs`` (ordered ``(u, v)``, e.g. the directed links of a range-limited network)
+    the sum runs over those pairs whose ``u`` is an agent: eq. (4) over the edges of the
+    framework's graph, which for a fully meshed network are all its pairs. A network of a
+    thousand agents has ~10⁶ pairs but ~2.5·10⁴ links: over the links the metric costs what
+    the links cost, and scores the distances the network measures.
 
     Parameters
     ----------
@@ -120,8 +126,15 @@ def framework_distance_errors(
     """
     q, p, anchor, present = _frames(est, true, is_anchor, missing)
     n = p.shape[0]
-    keep = (~anchor & present)[:, None] & present[None, :] & ~np.eye(n, dtype=bool)
-    pairs = np.argwhere(keep).astype(np.int64)
+    if pairs is None:
+        keep = (~anchor & present)[:, None] & present[None, :] & ~np.eye(n, dtype=bool)
+        pairs = np.argwhere(keep).astype(np.int64)
+    else:
+        pairs = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+        if pairs.size and (pairs.min() < 0 or pairs.max() >= n):
+            raise ValidationError("pairs", "node index out of range", f"indices in [0, {n})")
+        u, w = pairs[:, 0], pairs[:, 1]
+        pairs = pairs[~anchor[u] & present[u] & present[w] & (u != w)]
     u, w = pairs[:, 0], pairs[:, 1]
     errors = np.abs(np.linalg.norm(q[u] - q[w], axis=1) - np.linalg.norm(p[u] - p[w], axis=1))
     return (errors, pairs) if return_pairs else errors

@@ -46,10 +46,20 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
 from phyloc.localization.mds import _dim, _pairwise, classical_mds, smacof
+from phyloc.localization.sparse_start import (
+    PairGraph,
+    pair_graph,
+    sparse_coarse_positions,
+    undetermined_nodes,
+)
 from phyloc.network.geometry import kabsch
 
 FRAMES = ("anchors", "partial", "arbitrary")
 """Values of :attr:`CoarseSolution.frame`."""
+SOLVERS = ("dense", "sparse", "auto")
+"""Values of :func:`coarse_positions`' ``solver``."""
+SPARSE_ABOVE_NODES = 50
+"""``solver="auto"`` solves networks of more nodes than this on their measured pairs only."""
 
 
 # -- input checks -------------------------------------------------------------------------------
@@ -109,6 +119,20 @@ def range_matrix(
     (np.float64(11.0), np.float64(11.0), np.float64(0.0))
     """
     n = v.integer("n_nodes", n_nodes, minimum=1)
+    lk, r, ok, w_bad = _link_ranges(links, ranges, n, valid, combine, invalid_weight)
+    D, W = _pair_ranges(lk, r, ok, n, combine)
+    if w_bad > 0:
+        weak = ~ok & np.isfinite(r)
+        Db, Wb = _pair_ranges(lk, r, weak, n, combine)
+        fill = (W == 0) & (Wb > 0)
+        D = np.where(fill, Db, D)
+        W = np.where(fill, w_bad, W)
+    return D, W
+
+
+def _link_ranges(links, ranges, n, valid, combine, invalid_weight):
+    """Checked ``(links [n_links, 2] int64, ranges, valid flags, invalid_weight)`` of
+    :func:`range_matrix`'s arguments."""
     try:
         lk = np.asarray(links)
         if lk.size == 0:
@@ -146,14 +170,7 @@ def range_matrix(
     w_bad = v.positive("invalid_weight", invalid_weight, allow_zero=True)
     if w_bad >= 1.0:
         raise ValidationError("invalid_weight", invalid_weight, "in [0, 1)")
-    D, W = _pair_ranges(lk, r, ok, n, combine)
-    if w_bad > 0:
-        weak = ~ok & np.isfinite(r)
-        Db, Wb = _pair_ranges(lk, r, weak, n, combine)
-        fill = (W == 0) & (Wb > 0)
-        D = np.where(fill, Db, D)
-        W = np.where(fill, w_bad, W)
-    return D, W
+    return lk, r, ok, w_bad
 
 
 def _pair_ranges(lk, r, sel, n, combine):
@@ -350,12 +367,17 @@ class CoarseSolution:
         are absolute. ``"partial"``: fewer or degenerate (collinear/coplanar) anchors fix it only
         up to the rotations/reflections that leave them in place. ``"arbitrary"``: anchor-free,
         the frame is a gauge (centred configuration) and only the shape is meaningful.
+    undetermined : [n_nodes] bool
+        Nodes the measured pairs do not place, by the rule of
+        :func:`~phyloc.localization.sparse_start.undetermined_nodes` (outside the component
+        that fixes the frame, or fewer than ``dim + 1`` measured neighbours).
     """
 
     positions: np.ndarray
     stress: float
     residual_rms_m: float
     frame: str
+    undetermined: np.ndarray | None = None
 
 
 def _affine_rank(P: np.ndarray) -> int:
@@ -384,6 +406,7 @@ def coarse_positions(
     robust_rounds=10,
     invalid_weight=0.0,
     one_sided=False,
+    solver="dense",
 ) -> CoarseSolution:
     """Truth-free coarse network solution from range estimates: MDS → SMACOF → anchor frame.
 
@@ -462,6 +485,14 @@ def coarse_positions(
         biased ranges from folding the network around them. The chosen configuration is then
         polished by symmetric rounds at the finest scale (both sides agree within the noise).
         Default False (symmetric).
+    solver : {"dense", "sparse", "auto"}
+        ``"dense"`` (default): the ``n × n`` matrices above. ``"sparse"``: the same steps on
+        the measured pairs only (:mod:`phyloc.localization.sparse_start`: landmark MDS instead
+        of the all-pairs completion, SMACOF on the pairs' Laplacian, relocation around each
+        node's neighbours) — for range-limited networks, whose cost it keeps linear in the
+        links; a disconnected range graph is no error there (each component is solved on its
+        own, centred; its nodes are flagged ``undetermined``). ``"auto"``: sparse above
+        :data:`SPARSE_ABOVE_NODES` nodes.
 
     Returns
     -------
@@ -485,10 +516,16 @@ def coarse_positions(
     """
     n = v.integer("n_nodes", n_nodes, minimum=2)
     d = _dim(dim)
+    v.choice("solver", solver, SOLVERS)
+    if solver == "auto":
+        solver = "sparse" if n > SPARSE_ABOVE_NODES else "dense"
     restarts = v.integer("n_restarts", n_restarts, minimum=0)
     if restarts:
         _rng(rng)
-    D, W = range_matrix(links, ranges, n, valid, combine=combine, invalid_weight=invalid_weight)
+    if solver == "sparse":
+        lk, r, ok, w_bad = _link_ranges(links, ranges, n, valid, combine, invalid_weight)
+    else:
+        D, W = range_matrix(links, ranges, n, valid, combine=combine, invalid_weight=invalid_weight)
     if robust_scale_m is not None:
         scales = np.atleast_1d(np.asarray(robust_scale_m, dtype=object))
         if scales.ndim != 1 or scales.size == 0:
@@ -496,6 +533,16 @@ def coarse_positions(
         scales = sorted({v.positive("robust_scale_m", c) for c in scales}, reverse=True)
         rounds = v.integer("robust_rounds", robust_rounds, minimum=1)
 
+    robust = robust_scale_m is not None
+    sparse_kw = {
+        "rng": rng,
+        "n_restarts": restarts,
+        "n_iter": n_iter,
+        "tol": tol,
+        "scales": scales if robust else None,
+        "rounds": rounds if robust else 1,
+        "one_sided": one_sided,
+    }
     anchor = np.zeros(n, dtype=bool)
     if is_anchor is not None:
         anchor = np.asarray(is_anchor)
@@ -517,12 +564,17 @@ def coarse_positions(
                 "anchor_positions", f"array of shape {A.shape}", f"must be ({n_anchor}, {d})"
             )
         idx = np.flatnonzero(anchor)
+        if solver == "sparse":
+            return _sparse_solution(lk, r, ok, w_bad, n, d, combine, anchor, A, **sparse_kw)
         dA = np.linalg.norm(A[:, None, :] - A[None, :, :], axis=-1)
         D[np.ix_(idx, idx)] = dA
         W[np.ix_(idx, idx)] = 1.0
         np.fill_diagonal(W, 0.0)
         np.fill_diagonal(D, 0.0)
 
+    elif solver == "sparse":
+        return _sparse_solution(lk, r, ok, w_bad, n, d, combine, anchor, None, **sparse_kw)
+    measured = W
     X0 = classical_mds(D, d, W)
     X, s = smacof(D, W, X0, n_iter=n_iter, tol=tol)
     starts = [X]
@@ -561,4 +613,36 @@ def coarse_positions(
         frame = "arbitrary"
     n_pairs = int(np.count_nonzero(np.triu(W, 1)))
     rms = float(np.sqrt(s / n_pairs)) if n_pairs else 0.0
-    return CoarseSolution(positions=X, stress=float(s), residual_rms_m=rms, frame=frame)
+    i, j = np.nonzero(np.triu(measured, 1))
+    g = PairGraph(n, i.astype(np.int64), j.astype(np.int64), D[i, j], measured[i, j])
+    return CoarseSolution(
+        positions=X,
+        stress=float(s),
+        residual_rms_m=rms,
+        frame=frame,
+        undetermined=undetermined_nodes(g, d, anchor),
+    )
+
+
+def _sparse_solution(lk, r, ok, w_bad, n, d, combine, anchor, A, **kw) -> CoarseSolution:
+    """:func:`coarse_positions` with ``solver="sparse"`` (checked inputs; ``kw`` the options
+    of :func:`~phyloc.localization.sparse_start.sparse_coarse_positions`)."""
+    n_anchor = int(anchor.sum())
+    idx = np.flatnonzero(anchor)
+    g = pair_graph(lk, r, ok, n, combine, w_bad, anchors=(idx, A) if n_anchor else None)
+    X, gw, s = sparse_coarse_positions(
+        g, d, fixed=anchor if n_anchor else None, anchor_positions=A, **kw
+    )
+    if n_anchor:
+        frame = "anchors" if _affine_rank(A) == d else "partial"
+    else:
+        frame = "arbitrary"
+    n_pairs = int(np.count_nonzero(gw.w > 0))
+    rms = float(np.sqrt(s / n_pairs)) if n_pairs else 0.0
+    return CoarseSolution(
+        positions=X,
+        stress=float(s),
+        residual_rms_m=rms,
+        frame=frame,
+        undetermined=undetermined_nodes(g, d, anchor),
+    )
