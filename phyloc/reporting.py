@@ -80,6 +80,22 @@ def _clean(x):
     return x
 
 
+MEASUREMENT_SUFFIXES = ("_s", "_mb", "_exponent")
+"""Endings of figure names that measure the machine (wall times, memory, fitted cost
+exponents): they differ between runs of the same recipe; every other figure is a result of
+the recipe and its seed alone."""
+
+
+def is_measurement(name: str) -> bool:
+    """Whether figure ``name`` measures the machine rather than the recipe (a wall time, a
+    memory peak, a cost exponent: :data:`MEASUREMENT_SUFFIXES`, or a ``runtime`` figure).
+
+    >>> is_measurement("dipnet.c2.agents_30.iteration_s"), is_measurement("c2.los_fraction")
+    (True, False)
+    """
+    return "runtime" in name or name.endswith(MEASUREMENT_SUFFIXES)
+
+
 def file_mode() -> int:
     """The permission bits a new file gets from ``open()`` under the current umask
     (``0o666 & ~umask``, usually 0644)."""

@@ -7,6 +7,7 @@ from tiny import tiny_recipe
 from phyloc.config import load_recipe
 from phyloc.datasets import generate
 from phyloc.evaluation import localization_experiment as lx
+from phyloc.reporting import is_measurement
 
 COMMON = tiny_recipe(
     seed=77, localization={"n_particles": 300, "n_iterations": 3, "resample_move": False}
@@ -72,7 +73,7 @@ def _tracking(text):
 
 
 def _non_timing(figures):
-    return {k: v for k, v in figures.items() if not k.endswith("_s")}
+    return {k: v for k, v in figures.items() if not is_measurement(k)}
 
 
 def test_tracking_runs_every_snapshot_and_equals_in_memory_on_any_worker_count(tmp_path):

@@ -17,7 +17,7 @@ from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
 from phyloc.evaluation import localization_experiment as lx
 from phyloc.phy.system import K_BOLTZMANN
-from phyloc.reporting import OutputExistsError
+from phyloc.reporting import OutputExistsError, is_measurement
 
 #: Anchor-free, one snapshot, WINNER II C2 (as tests/test_evaluate_dataset.py), 2 realizations.
 C2 = """
@@ -134,7 +134,7 @@ def test_exported_and_imported_dataset_gives_identical_localization(c2, tmp_path
     b = lx.DATASET_LOCALIZATION.run_dataset(out, progress=False)
     fa, fb = a["figures"], b["figures"]
     assert fa.keys() == fb.keys()
-    timing = [k for k in fa if "runtime" in k or k.endswith("_s")]
+    timing = [k for k in fa if is_measurement(k)]
     differ = [k for k in fa if k not in timing and not _same(fa[k], fb[k])]
     assert not differ, {k: (fa[k], fb[k]) for k in differ}
     for m in ("dipnet_published", "corr", "sage_los"):

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import time
 
 import numpy as np
 
@@ -65,14 +66,15 @@ def usable_links(tables, rspec, lspec):
     return tuple(energy_concentration(t, **kw) >= lspec.los_min_concentration for t in tables)
 
 
-def link_measurements(real, tables, rspec, methods, usable=None):
+def link_measurements(real, tables, rspec, methods, usable=None, timings=None):
     """The measurements of every snapshot of a realization, for every method's ``inputs``.
 
     Correlation tables, and the ranges of ``"corr"`` (the truth-free initialization and the
     link-bias figures read them) and of every estimator a method's ``inputs`` names
     (``"ranges:<estimator>"``; the oracle ``"sage_los"`` gets the true LOS flags here, in
     the evaluation); ``usable`` the links the NLOS identification kept (:func:`usable_links`).
-    Returns the measurements and, per estimator, its estimates per snapshot."""
+    Returns the measurements and, per estimator, its estimates per snapshot; ``timings``, a
+    dict, receives each estimator's wall time [s] as ``ranging_<name>``."""
     net = real.network
     ways = real.ways
     names = {"corr"}
@@ -82,6 +84,7 @@ def link_measurements(real, tables, rspec, methods, usable=None):
             names.add(inputs.split(":", 1)[1])
     ranges = {}
     for name in sorted(names):
+        clock = time.perf_counter()
         per_t = []
         for table, draw in zip(tables, real.channels, strict=True):
             e = estimate(name, table, los=draw.los, **rspec.method_options(name))
@@ -91,6 +94,8 @@ def link_measurements(real, tables, rspec, methods, usable=None):
                 )
             per_t.append(e)
         ranges[name] = per_t
+        if timings is not None:
+            timings[f"ranging_{name}"] = time.perf_counter() - clock
     anchors = net.anchor_index
     meas = LinkMeasurements(
         n_nodes=net.n_nodes,
@@ -126,14 +131,19 @@ def start_prior(init, net, links, corr, lspec, Q, rng):
     two-step solution of :func:`~phyloc.localization.coarse_positions` on the correlation-peak
     ranges ``corr``), ``"informed"`` (around the truth plus N(0, ``informed_std_m``²)) or
     ``"gauge"`` (uninformative gauge priors). Returns the :class:`~phyloc.localization.Prior`
-    (``Q`` particles per agent) and the centres ``[n_agents, dim]`` (None for the gauge
-    priors)."""
+    (``Q`` particles per agent), the centres ``[n_agents, dim]`` (None for the gauge
+    priors) and, for the truth-free start, which agents the measured pairs leave undetermined
+    (``[n_agents]`` bool, the rule of
+    :func:`~phyloc.localization.sparse_start.undetermined_nodes`; None otherwise). The coarse
+    solution runs on the pairs' own graph (``init_solver``, sparse above
+    :data:`~phyloc.localization.initialization.SPARSE_ABOVE_NODES` nodes by default)."""
     agents = net.agent_index
     pos = net.positions[0]
+    undetermined = None
     if init == "gauge":
         X = gauge_priors(agents.size, net.dim, Q, lspec.gauge_extent_m, rng)
         ext = lspec.gauge_extent_m
-        return Prior(X, lambda x: gauge_log_prior(x, ext), "uninformative gauge priors"), None
+        return Prior(X, lambda x: gauge_log_prior(x, ext), "uninformative gauge priors"), None, None
     if init == "informed":
         centers = informed_centers(pos[agents], lspec.informed_std_m, rng=rng)
         std, label = lspec.informed_std_m, "informed start"
@@ -149,6 +159,7 @@ def start_prior(init, net, links, corr, lspec, Q, rng):
             "n_restarts": lspec.init_restarts,
             "one_sided": lspec.init_one_sided,
             "rng": rng,
+            "solver": lspec.init_solver,
         }
         try:
             sol = coarse_positions(*args, **kw)
@@ -158,8 +169,9 @@ def start_prior(init, net, links, corr, lspec, Q, rng):
             # their pairs are unobservable) without bending the detected part of the network
             sol = coarse_positions(*args, invalid_weight=UNDETECTED_WEIGHT, **kw)
         centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
+        undetermined = sol.undetermined[agents]
     X = gaussian_priors(centers, std, Q, rng)
-    return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label), centers
+    return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label), centers, undetermined
 
 
 def observable_pairs(net, t, links, detected, rng) -> np.ndarray:
@@ -172,9 +184,27 @@ def observable_pairs(net, t, links, detected, rng) -> np.ndarray:
     :func:`~phyloc.network.rigidity.determined_pairs`). Returns a flag per pair of
     :func:`~phyloc.evaluation.metrics.framework_distance_errors` (same order)."""
     pos = net.positions[t]
-    _, pairs = framework_distance_errors(pos, pos, net.is_anchor, return_pairs=True)
+    scored = scored_pairs(net, links)
+    if scored is not None and net.n_nodes > RIGIDITY_MAX_NODES:
+        return None
+    _, pairs = framework_distance_errors(pos, pos, net.is_anchor, return_pairs=True, pairs=scored)
     edges = np.asarray(links)[np.asarray(detected, bool)]
     return determined_pairs(net.n_nodes, edges, pairs, net.dim, rng, fixed=net.is_anchor)
+
+
+RIGIDITY_MAX_NODES = 300
+"""Largest range-limited network whose observable pairs are computed: the rigidity test
+(:func:`~phyloc.network.rigidity.determined_pairs`) takes the null space of the
+``n_links × dim·n`` rigidity matrix by a dense SVD — cubic in the network size. Above this
+size the ``framework_rmse_observable_m`` and ``unobservable_pair_fraction`` figures are left
+out (the start's undetermined agents, :func:`start_prior`, are reported at every size)."""
+
+
+def scored_pairs(net, links):
+    """The ordered pairs DiPNet eq. (4) sums over: ``None`` (every pair) for a fully meshed
+    network, the directed ``links`` for a range-limited one (eq. (4) over the framework's
+    edges; :func:`~phyloc.evaluation.metrics.framework_distance_errors`)."""
+    return None if net.comm_range_m is None else np.asarray(links)
 
 
 def _method_plan(methods, lspec):
@@ -198,12 +228,23 @@ def localize_realization(real, system, rspec, lspec, methods, inits, seed_seq, k
     plan = _method_plan(methods, lspec)
     streams = seed_seq.spawn(2 + len(inits) * (1 + len(plan)))
     net = real.network
+    clock = time.perf_counter()
     tables = link_tables(real, system, rspec.beta)
     usable = usable_links(tables, rspec, lspec)
-    meas, ests = link_measurements(real, tables, rspec, [name for _, name, _ in plan], usable)
+    stage = {"tables": time.perf_counter() - clock}
+    meas, ests = link_measurements(
+        real, tables, rspec, [name for _, name, _ in plan], usable, timings=stage
+    )
     corr0 = ests["corr"][0]
     if usable is not None:  # the start ranges only the links the identification kept
         corr0 = dataclasses.replace(corr0, valid=corr0.valid & usable[0])
+    observable = [
+        observable_pairs(
+            net, t, lk, e.valid & meas.usable_links(t), np.random.default_rng(streams[0])
+        )
+        for t, (e, lk) in enumerate(zip(ests["corr"], real.links, strict=True))
+    ]
+    pairs = [scored_pairs(net, lk) for lk in real.links]
     out = {
         # distances of the realization's own links (recorded data need not have every link
         # the network's range allows; for simulated data they are the same links)
@@ -216,14 +257,9 @@ def localize_realization(real, system, rspec, lspec, methods, inits, seed_seq, k
         ),
         "link_valid_corr": np.concatenate([e.valid for e in ests["corr"]]),
         "los": np.concatenate([np.asarray(d.los, bool) for d in real.channels]),
-        "observable": np.concatenate(
-            [
-                observable_pairs(
-                    net, t, lk, e.valid & meas.usable_links(t), np.random.default_rng(streams[0])
-                )
-                for t, (e, lk) in enumerate(zip(ests["corr"], real.links, strict=True))
-            ]
-        ),
+        "observable": None if any(o is None for o in observable) else np.concatenate(observable),
+        "neighbours": real.links[0].shape[0] / max(net.n_agents, 1),
+        "methods": {label: name for label, name, _ in plan},
         "dim": net.dim,
     }
     s = 2
@@ -237,19 +273,30 @@ def localize_realization(real, system, rspec, lspec, methods, inits, seed_seq, k
             Q = opts.dpf.n_particles if isinstance(opts, DirectOptions) else lspec.dpf.n_particles
             if Q not in priors:
                 rng_p = np.random.default_rng(prior_seed)
-                priors[Q], centers = start_prior(init, net, real.links[0], corr0, lspec, Q, rng_p)
+                clock = time.perf_counter()
+                priors[Q], centers, undetermined = start_prior(
+                    init, net, real.links[0], corr0, lspec, Q, rng_p
+                )
+                stage.setdefault(f"start_{init}", time.perf_counter() - clock)
                 if f"start|{init}|err" not in out:  # the start itself, as a method would be
                     out[f"start|{init}|err"] = (
                         np.full(0, np.nan)
                         if centers is None
                         else framework_distance_errors(
-                            _nodes(centers, meas, net.agent_index), net.positions[0], net.is_anchor
+                            _nodes(centers, meas, net.agent_index),
+                            net.positions[0],
+                            net.is_anchor,
+                            pairs=pairs[0],
                         )
                     )
+                    out[f"start|{init}|undetermined"] = undetermined
             if keep_particles and isinstance(opts, DirectOptions):
                 opts = dataclasses.replace(opts, keep_particles=tuple(keep_particles))
+            clock = time.perf_counter()
             res = REGISTRY[name].run(meas, priors[Q], rng_m, opts)
-            out.update(_run_outputs(f"{label}|{init}", res, meas, net.positions))
+            out[f"{label}|{init}|wall_s"] = time.perf_counter() - clock
+            out.update(_run_outputs(f"{label}|{init}", res, meas, net.positions, pairs))
+    out["stage_s"] = stage
     return out
 
 
@@ -276,7 +323,7 @@ def _nees(estimates, covariances, truth, is_anchor):
     return out
 
 
-def _run_outputs(key, res, meas, truth):
+def _run_outputs(key, res, meas, truth, pairs=None):
     """Metrics of one run (``res``, a Result) against the truth, keyed ``key|<what>``.
 
     ``truth [T, n_nodes, dim]`` enters only here. Errors are pooled over snapshots (``err``),
@@ -288,8 +335,11 @@ def _run_outputs(key, res, meas, truth):
     agents = meas.agent_nodes
     diag = res.diagnostics
     T = res.estimates.shape[0]
+    pairs = [None] * T if pairs is None else pairs
     errs = [
-        framework_distance_errors(_nodes(res.estimates[t], meas, agents, t), truth[t], is_anchor)
+        framework_distance_errors(
+            _nodes(res.estimates[t], meas, agents, t), truth[t], is_anchor, pairs=pairs[t]
+        )
         for t in range(T)
     ]
     history = diag["mean_history"][0] if "mean_history" in diag else res.estimates[:1]
@@ -310,6 +360,8 @@ def _run_outputs(key, res, meas, truth):
             is_anchor,
         ),
         key + "|sec_per_agent_it": res.timing.per_agent_iteration_s,
+        key + "|iteration_s": res.timing.wall_s
+        / max(res.timing.agent_iterations / max(len(agents), 1), 1.0),
         key + "|agent_snapshot_s": float(np.mean(res.timing.agent_s)),
         key + "|particles_at": {
             t: (np.asarray(X), np.asarray(lw))

@@ -77,6 +77,7 @@ Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,6 +88,7 @@ from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment, RunContext
 from phyloc.evaluation.front_end import localize_realization
+from phyloc.evaluation.rss import peak_rss_mb, reset_peak_rss, status_mb
 from phyloc.evaluation.sections import (
     LocalizationSpec,
     RangingSpec,
@@ -163,8 +165,14 @@ class LocalizationExperimentSpec:
 def _task(payload, seed_seq):
     """Simulate one realization (stream: the task's seed sequence itself) and localize."""
     system, net_spec, chan_spec, rspec, lspec, methods, inits = payload
+    own_peak = reset_peak_rss()  # the task's own peak RSS where the kernel allows it
+    clock = time.perf_counter()
     real = simulate_realization(system, net_spec, chan_spec, np.random.default_rng(seed_seq))
-    return localize_realization(real, system, rspec, lspec, methods, inits, seed_seq)
+    waveforms_s = time.perf_counter() - clock
+    out = localize_realization(real, system, rspec, lspec, methods, inits, seed_seq)
+    out["stage_s"] = {"waveforms": waveforms_s, **out["stage_s"]}
+    out["peak_rss_mb"] = status_mb("VmHWM") if own_peak else peak_rss_mb()
+    return out
 
 
 def _dataset_task(payload, seed_seq):
@@ -364,14 +372,22 @@ def _aggregate(keys, results, exp, tokens):
                 float(le[sel].mean()) if sel.any() else float("nan")
             )
         for n in exp.agents:
-            obs = np.concatenate(
-                [
-                    r["observable"]
-                    for (t, nn, _), r in zip(keys, results, strict=True)
-                    if t == tok and nn == n
-                ]
-            )
-            figures[f"{tok}.agents_{n}.unobservable_pair_fraction"] = float(1.0 - obs.mean())
+            runs = [r for (t, nn, _), r in zip(keys, results, strict=True) if t == tok and nn == n]
+            obs = _observable(runs)
+            if obs is not None:
+                figures[f"{tok}.agents_{n}.unobservable_pair_fraction"] = float(1.0 - obs.mean())
+            if "neighbours" in runs[0]:
+                figures[f"{tok}.agents_{n}.mean_neighbours"] = float(
+                    np.mean([r["neighbours"] for r in runs])
+                )
+            for stage in runs[0].get("stage_s", {}):
+                figures[f"{tok}.agents_{n}.{stage}_s"] = float(
+                    np.mean([r["stage_s"][stage] for r in runs])
+                )
+            if "peak_rss_mb" in runs[0]:
+                figures[f"{tok}.agents_{n}.peak_rss_mb"] = float(
+                    max(r["peak_rss_mb"] for r in runs)
+                )
         for init in exp.inits:
             tag = tok + INITS[init]
             for n in exp.agents:
@@ -385,6 +401,15 @@ def _aggregate(keys, results, exp, tokens):
                 figures[f"start.{tag}.agents_{n}.framework_rmse_m"] = (
                     float(math.sqrt(np.mean(err**2))) if err.size else float("nan")
                 )
+                und = [
+                    r.get(f"start|{init}|undetermined")
+                    for (t, nn, _), r in zip(keys, results, strict=True)
+                    if t == tok and nn == n
+                ]
+                if und and all(u is not None for u in und):
+                    figures[f"start.{tag}.agents_{n}.undetermined_agent_fraction"] = float(
+                        np.concatenate(und).mean()
+                    )
             for m in exp.methods:
                 key = f"{m}|{init}"
                 for n in exp.agents:
@@ -394,12 +419,20 @@ def _aggregate(keys, results, exp, tokens):
                         if t == tok and nn == n
                     ]
                     err = np.concatenate([r[key + "|err"] for r in runs])
-                    obs = np.concatenate([r["observable"] for r in runs])
+                    obs = _observable(runs)
                     base = f"{m}.{tag}.agents_{n}"
                     figures[base + ".framework_rmse_m"] = float(math.sqrt(np.mean(err**2)))
-                    figures[base + ".framework_rmse_observable_m"] = (
-                        float(math.sqrt(np.mean(err[obs] ** 2))) if obs.any() else float("nan")
-                    )
+                    if obs is not None:
+                        figures[base + ".framework_rmse_observable_m"] = (
+                            float(math.sqrt(np.mean(err[obs] ** 2))) if obs.any() else float("nan")
+                        )
+                    if key + "|iteration_s" in runs[0]:
+                        figures[base + ".iteration_s"] = float(
+                            np.mean([r[key + "|iteration_s"] for r in runs])
+                        )
+                        figures[base + ".chain_s"] = float(
+                            np.mean([_chain_s(r, m, init) for r in runs])
+                        )
                     dim = runs[0]["dim"]
                     nees = np.concatenate([r[key + "|nees"] for r in runs])
                     nees = nees[np.isfinite(nees)]
@@ -435,7 +468,55 @@ def _aggregate(keys, results, exp, tokens):
             figures[f"{m}.runtime_per_agent_iteration_s"] = float(
                 np.mean([r[f"{m}|{i}|sec_per_agent_it"] for r in results for i in exp.inits])
             )
+            for init in exp.inits:
+                tag = tok + INITS[init]
+                fit = cost_exponent(
+                    exp.agents,
+                    [figures.get(f"{m}.{tag}.agents_{n}.iteration_s") for n in exp.agents],
+                )
+                if fit is not None:
+                    figures[f"{m}.{tag}.iteration_s_exponent"] = fit
     return figures, series
+
+
+def _chain_s(run, label, init) -> float:
+    """Wall time of one method's whole chain on one realization [s]: waveforms, tables, the
+    correlation-peak ranges (the truth-free start reads them), the start, the ranges of the
+    method's own estimator (two-step methods) and the method itself."""
+    stage = run["stage_s"]
+    inputs = REGISTRY[run["methods"][label]].inputs if "methods" in run else "tables"
+    own = inputs.split(":", 1)[1] if inputs.startswith("ranges:") else None
+    total = sum(stage.get(k, 0.0) for k in ("waveforms", "tables", "ranging_corr"))
+    total += stage.get(f"start_{init}", 0.0) + run[f"{label}|{init}|wall_s"]
+    if own is not None and own != "corr":
+        total += stage.get(f"ranging_{own}", 0.0)
+    return total
+
+
+def _observable(runs):
+    """The observable-pair flags of ``runs`` pooled, or None when a run left them out
+    (range-limited networks above :data:`~phyloc.evaluation.front_end.RIGIDITY_MAX_NODES`)."""
+    if any(r["observable"] is None for r in runs):
+        return None
+    return np.concatenate([r["observable"] for r in runs])
+
+
+def cost_exponent(sizes, seconds):
+    """The exponent ``b`` of ``seconds ≈ a · sizes^b``, least squares in log–log over the sizes
+    with a positive time; None with fewer than two such sizes.
+
+    >>> round(cost_exponent([30, 100, 300], [0.3, 1.0, 3.0]), 6)
+    1.0
+    """
+    pts = [
+        (math.log(n), math.log(t))
+        for n, t in zip(sizes, seconds, strict=True)
+        if t is not None and t > 0
+    ]
+    if len({x for x, _ in pts}) < 2:
+        return None
+    x, y = np.array(pts).T
+    return float(np.polyfit(x, y, 1)[0])
 
 
 DATASET_EXPERIMENT_KEYS = ("methods", "inits", "fast")

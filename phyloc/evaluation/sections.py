@@ -29,7 +29,7 @@ from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
 from phyloc.evaluation.methods import method_plan
 from phyloc.localization import DirectOptions
-from phyloc.localization.initialization import PAIR_COMBINE
+from phyloc.localization.initialization import PAIR_COMBINE, SOLVERS
 from phyloc.network import NetworkSpec
 from phyloc.phy import C0, OFDMSystem, PathSet
 from phyloc.phy.correlation import correlation_tables
@@ -158,6 +158,7 @@ PRIOR_KEYS = (
     "init_robust_scale_m",
     "init_restarts",
     "init_one_sided",
+    "init_solver",
     "los_min_concentration",
 )
 """``[localization]`` keys of the experiment's priors; every other key is a method option."""
@@ -176,7 +177,10 @@ class LocalizationSpec:
     cost at the smallest scale winning, ``init_restarts`` (default 10) the random SMACOF
     starts it adds to the MDS start, the lowest robust cost winning, and ``init_one_sided``
     (default true) whether the reweighting spares ranges shorter than the fitted distance
-    (NLOS biases are positive: a short range is noise, a long one may be biased)
+    (NLOS biases are positive: a short range is noise, a long one may be biased), and
+    ``init_solver`` (``"auto"``, default: ``"dense"`` up to
+    :data:`~phyloc.localization.initialization.SPARSE_ABOVE_NODES` nodes, ``"sparse"`` above;
+    or either by name) whether it solves on ``n × n`` matrices or on the measured pairs only
     (:func:`~phyloc.localization.initialization.coarse_positions`).
     ``los_min_concentration`` (default 0.6; 0: off) is the NLOS identification: a link whose
     correlation has an energy concentration below it
@@ -199,6 +203,7 @@ class LocalizationSpec:
     init_robust_scale_m: tuple = (5.0, 2.0, 1.0)
     init_restarts: int = 10
     init_one_sided: bool = True
+    init_solver: str = "auto"
     los_min_concentration: float = 0.6
 
     def __post_init__(self):
@@ -215,6 +220,7 @@ class LocalizationSpec:
             )
         object.__setattr__(self, "init_robust_scale_m", scales)
         v.integer("localization.init_restarts", self.init_restarts, minimum=0)
+        v.choice("localization.init_solver", self.init_solver, SOLVERS)
         check_min_concentration(self.los_min_concentration, "localization.los_min_concentration")
         v.positive("localization.informed_std_m", self.informed_std_m)
         v.positive("localization.gauge_extent_m", self.gauge_extent_m)

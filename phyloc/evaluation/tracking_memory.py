@@ -15,41 +15,10 @@ import math
 
 import numpy as np
 
+from phyloc.evaluation.rss import peak_rss_mb, reset_peak_rss, status_mb
 from phyloc.evaluation.tracking_scenarios import gaussian_run
 from phyloc.localization import METHODS
 from phyloc.localization.tracking import paper_prior
-
-
-def _status_mb(field: str) -> float:
-    """A ``/proc/self/status`` memory field (``VmRSS``, ``VmHWM``) [MB]; NaN where absent."""
-    try:
-        with open("/proc/self/status") as fh:
-            for line in fh:
-                if line.startswith(field + ":"):
-                    return float(line.split()[1]) / 1024.0  # kB
-    except OSError:
-        pass
-    return math.nan
-
-
-def _reset_peak_rss() -> bool:
-    """Reset this process's peak RSS (``VmHWM``) to its current RSS (Linux >= 4.0:
-    ``echo 5 > /proc/self/clear_refs``); False where that is not possible."""
-    try:
-        with open("/proc/self/clear_refs", "w") as fh:
-            fh.write("5")
-        return True
-    except OSError:
-        return False
-
-
-def _peak_rss_mb() -> float:
-    """This process's peak resident set size so far [MB] (``ru_maxrss``: KiB on Linux)."""
-    import resource
-    import sys
-
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    return peak / (1024.0**2 if sys.platform == "darwin" else 1024.0)  # bytes on macOS
 
 
 def _memory_probe(payload) -> tuple[float, float]:
@@ -75,13 +44,13 @@ def _memory_probe(payload) -> tuple[float, float]:
     sc, _ = gaussian_run(exp, scen, rng)
     meas = sc.measurements()
     prior = paper_prior(meas, rng, sigma_p=exp.sigma_p, accel_init_factor=exp.accel_init_factor)
-    if _reset_peak_rss():
-        before = _status_mb("VmRSS")
+    if reset_peak_rss():
+        before = status_mb("VmRSS")
         method.run(meas, prior, rng, options)
-        return before, _status_mb("VmHWM")
-    before = _peak_rss_mb()
+        return before, status_mb("VmHWM")
+    before = peak_rss_mb()
     method.run(meas, prior, rng, options)
-    return before, _peak_rss_mb()
+    return before, peak_rss_mb()
 
 
 def memory_study(exp, options, bases, seed, *, progress=True) -> dict:
