@@ -41,6 +41,7 @@ from phyloc.localization import (
 from phyloc.network.rigidity import determined_pairs
 from phyloc.phy.correlation import correlation_tables
 from phyloc.ranging import estimate
+from phyloc.ranging.estimators import ORACLES, nlos_rejected
 from phyloc.ranging.nlos import energy_concentration
 
 
@@ -86,6 +87,15 @@ def link_measurements(real, tables, rspec, methods, usable=None, timings=None):
     for name in sorted(names):
         clock = time.perf_counter()
         per_t = []
+        base = ORACLES.get(name)
+        if base in ranges:  # the oracle masks the estimates of its estimator, run once
+            ranges[name] = [
+                nlos_rejected(e, np.asarray(d.los, bool))
+                for e, d in zip(ranges[base], real.channels, strict=True)
+            ]
+            if timings is not None:
+                timings[f"ranging_{name}"] = time.perf_counter() - clock
+            continue
         for table, draw in zip(tables, real.channels, strict=True):
             e = estimate(name, table, los=draw.los, **rspec.method_options(name))
             if ways != 1:  # two-way tables measure the round trip

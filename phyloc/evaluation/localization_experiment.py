@@ -476,6 +476,16 @@ def _aggregate(keys, results, exp, tokens):
                 )
                 if fit is not None:
                     figures[f"{m}.{tag}.iteration_s_exponent"] = fit
+                links = [
+                    figures.get(f"{tok}.agents_{n}.mean_neighbours", math.nan) * n
+                    for n in exp.agents
+                ]
+                fit = cost_exponent(
+                    links,
+                    [figures.get(f"{m}.{tag}.agents_{n}.iteration_s") for n in exp.agents],
+                )
+                if fit is not None:  # 1: linear in the links (the neighbourhoods grow at the
+                    figures[f"{m}.{tag}.iteration_s_link_exponent"] = fit  # border)
     return figures, series
 
 
@@ -511,7 +521,7 @@ def cost_exponent(sizes, seconds):
     pts = [
         (math.log(n), math.log(t))
         for n, t in zip(sizes, seconds, strict=True)
-        if t is not None and t > 0
+        if t is not None and t > 0 and n > 0
     ]
     if len({x for x, _ in pts}) < 2:
         return None
