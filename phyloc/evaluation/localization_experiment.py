@@ -62,9 +62,15 @@ published covariance, per agent after rigid alignment, mean over agents and real
 ``.error_to_belief_ratio_median`` the same from the median NEES over the median of χ²_dim, robust
 to a few lost agents),
 ``<method>.runtime_per_agent_iteration_s``, ``<s>.link_bias.<los|nlos>_mean_m`` (correlation-peak
-range bias, pooled over snapshots). Series: error CDFs at ``experiment.cdf_agents``, per
-iteration at the largest network (snapshot 0): mean ESS, published std ``sqrt(tr C/dim)`` and
-actual error of the published means; with several snapshots
+range bias, pooled over snapshots). Cost per size: ``<s>.agents_<n>.<stage>_s`` (``waveforms``,
+``tables``, ``ranging_<estimator>``, ``start_<init>``), ``<method>.<s>.agents_<n>.iteration_s``
+and ``.chain_s``, ``<s>.agents_<n>.peak_rss_mb``, ``<s>.agents_<n>.mean_neighbours``, the
+start's ``start.<s>.agents_<n>.undetermined_agent_fraction`` and, over several sizes,
+``<method>.<s>.iteration_s_exponent`` / ``_link_exponent`` (drawn as ``<recipe>_cost.png``).
+In a range-limited network eq. (4) runs over the links
+(:func:`~phyloc.evaluation.front_end.scored_pairs`). Series: error CDFs at
+``experiment.cdf_agents``, per iteration at the largest network (snapshot 0): mean ESS,
+published std ``sqrt(tr C/dim)`` and actual error of the published means; with several snapshots
 ``<method>.<token>.agents_<n>.rmse_by_snapshot``.
 
 References
@@ -79,6 +85,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -712,6 +719,46 @@ def plot(results: dict, path) -> None:
     fig.suptitle(
         f"Direct vs two-step localization — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
     )
+    save_figure(fig, path)
+    if len(agents) > 1 and any(k.endswith("_link_exponent") for k in f):
+        plot_cost(results, Path(path).with_name(Path(path).stem + "_cost.png"))
+
+
+def plot_cost(results: dict, path) -> None:
+    """``<recipe>_cost.png`` (runs over several sizes): per scenario token, the wall time of one
+    filter iteration over the whole network against the number of agents (log–log, with the
+    fitted exponent in the legend and a slope-1 guide), the chain of each method per
+    realization, and the peak RSS of a realization's task."""
+    f, meta = results["figures"], results["meta"]
+    agents = np.asarray(meta["agents"], dtype=float)
+    toks = list(meta["scenarios"])
+    fig, axes = new_figure(len(toks), 3, squeeze=False, size=(13.8, 4.0 * len(toks)))
+    for j, tok in enumerate(toks):
+        ax, ax2, ax3 = axes[j]
+        for init in meta["inits"]:
+            tag = tok + INITS[init]
+            for i, m in enumerate(meta["methods"]):
+                y = [f.get(f"{m}.{tag}.agents_{int(n)}.iteration_s", np.nan) for n in agents]
+                b = f.get(f"{m}.{tag}.iteration_s_exponent", np.nan)
+                ax.loglog(agents, y, marker="os^vdx"[i % 6], color=f"C{i}", label=f"{m}: N^{b:.2f}")
+                c = [f.get(f"{m}.{tag}.agents_{int(n)}.chain_s", np.nan) for n in agents]
+                ax2.loglog(agents, c, marker="os^vdx"[i % 6], color=f"C{i}", label=m)
+        y0 = f.get(f"{meta['methods'][0]}.{toks[0]}.agents_{int(agents[0])}.iteration_s", np.nan)
+        ax.loglog(agents, y0 * agents / agents[0], "k:", lw=1, label="∝ N")
+        rss = [f.get(f"{tok}.agents_{int(n)}.peak_rss_mb", np.nan) for n in agents]
+        ax3.loglog(agents, rss, "ko-")
+        ax.set_title(f"{tok}: one filter iteration, whole network")
+        ax.set_ylabel("wall time [s]")
+        ax2.set_title(f"{tok}: one realization per method (chain)")
+        ax2.set_ylabel("wall time [s]")
+        ax3.set_title(f"{tok}: peak RSS of a realization")
+        ax3.set_ylabel("MB")
+        for a in (ax, ax2, ax3):
+            a.set_xlabel("number of agents")
+            a.grid(True, which="both", alpha=0.3)
+        for a in (ax, ax2):
+            a.legend(fontsize=6)
+    fig.suptitle(f"Cost against network size — {meta['recipe']}")
     save_figure(fig, path)
 
 
