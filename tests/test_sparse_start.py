@@ -148,6 +148,10 @@ def test_undetermined_rule_on_hand_built_graphs():
     edges += [[6, 7], [7, 8], [6, 8]]
     und = undetermined_nodes(_graph_of(p, edges), 2)
     assert und.tolist() == [False] * 5 + [True] * 5
+    # a lone measured triangle (or pair) is one shape: its nodes are determined
+    tri = _graph_of(np.zeros((3, 2)), [[0, 1], [1, 2], [0, 2]])
+    assert not undetermined_nodes(tri, 2).any()
+    assert not undetermined_nodes(_graph_of(np.zeros((2, 2)), [[0, 1]]), 2).any()
     # in 3-D a node needs four neighbours: the fully linked five have four each
     assert undetermined_nodes(_graph_of(np.zeros((10, 3)), edges), 3)[:5].tolist() == [False] * 5
     # with anchors the frame is the anchors' component, and anchors are never undetermined

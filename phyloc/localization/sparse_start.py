@@ -26,7 +26,8 @@ Undetermined agents. A rule the reports follow (:func:`undetermined_nodes`): an 
 *undetermined* when it is not in the largest connected component of the measured pairs
 (components other than the largest, or without ``dim + 1`` anchors when there are anchors,
 have no common frame with it), or when it has fewer than ``dim + 1`` measured neighbours (in
-the plane, two ranges leave a reflection; one, a circle). Their start is still a position —
+the plane, two ranges leave a reflection; one, a circle) and its component has other nodes
+to be reflected against (a fully measured triangle is one shape). Their start is still a position —
 their component's own solution, centred — but no method can be expected to place them.
 
 References
@@ -351,8 +352,9 @@ def _robust_solution(g, starts, c, rounds, n_iter, tol, fixed, one_sided):
 def undetermined_nodes(g: PairGraph, dim: int, is_anchor=None) -> np.ndarray:
     """The documented rule (module docstring): ``[n]`` bool, True for a node outside the
     component that fixes the frame — the largest component, or with anchors the component
-    holding the most anchors — or with fewer than ``dim + 1`` measured neighbours. Anchors are
-    never undetermined."""
+    holding the most anchors — or with fewer than ``dim + 1`` measured neighbours in a
+    component of more than ``dim + 1`` nodes (a node of a triangle has two neighbours, and the
+    triangle is one shape). Anchors are never undetermined."""
     anchor = np.zeros(g.n, bool) if is_anchor is None else np.asarray(is_anchor, bool)
     measured = g.with_weights(g.w)
     # anchor-anchor pairs carry no measurement: leave them out of the degree and components
@@ -366,7 +368,10 @@ def undetermined_nodes(g: PairGraph, dim: int, is_anchor=None) -> np.ndarray:
         frame = np.isin(labels, np.unique(labels[anchor])) if votes.max() else labels == main
     else:
         frame = labels == np.argmax(np.bincount(labels))
-    out = ~frame | (m.degree() < dim + 1)
+    # a node with fewer than dim + 1 neighbours can flip (reflect across its neighbours) —
+    # unless its component has no other node to flip against (a triangle is one shape)
+    size = np.bincount(labels)[labels]
+    out = ~frame | (m.degree() < np.minimum(dim + 1, size - 1))
     out[anchor] = False
     return out
 
