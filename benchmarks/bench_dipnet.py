@@ -20,6 +20,27 @@ mixture, accumulate). Figures (names are the interface):
 ``dipnet.scaling_exponent_q``             d log(time) / d log(Q) of one likelihood sweep
 ``dipnet.scaling_exponent_links``         d log(time) / d log(|V_u|)   (DiPNet Table I: both 1)
 
+Filter cost (:func:`filter_report`; one Numba thread, as a task of a parallel evaluation; 30
+agents, Q = 1000, a WINNER II C2 network from the Fig. 5 truth-free start: priors of std 10 m
+around centres 5 m off; the two-step filters read true distances with a positive NLOS-like bias
+on about a third of the links and variances log-uniform in [1e-4, 0.3] m² (the spread of the
+Fig. 5 ZZB variances), so that their links disagree as measured ranges do; ``<filter>`` one of
+``dipnet``, ``two_step_paper`` — the ``corr`` method with the plain Gaussian of DiPNet §V-A,
+``outlier_nats = inf`` — and ``two_step_bounded`` — ``outlier_nats = 10``, ``model_error_m =
+0.3``, the Fig. 5 recipe's "_bounded" methods):
+
+``filter.<filter>.agent_iteration_s``          s per agent-iteration (the method's own timing)
+``filter.<filter>.tempering_steps_per_iteration``  adaptive tempering steps per iteration
+``filter.<filter>.sweep_s_per_agent``          reference, measured in the same rounds: one
+                                               evaluation of the filter's frozen likelihood at
+                                               every particle, per agent
+``filter.<filter>.sweeps_per_agent_iteration`` agent_iteration_s / sweep_s_per_agent: the
+                                               filter's cost in likelihood sweeps (machine-free)
+``filter.<filter>.sweeps_per_tempering_step``  the same per tempering step (each step resamples
+                                               and runs two Metropolis–Hastings sweeps, which
+                                               evaluate the new and the old likelihood: about
+                                               4 sweeps is the floor of the likelihood work)
+
 DiPNet Table I, measured (:mod:`benchmarks._table1`; one Numba thread; ``<scheme>`` one of
 ``exact``, ``sampled``, ``el``, ``dipnet_published``, ``dipnet``):
 
@@ -60,6 +81,7 @@ from phyloc.localization import (
     DirectLikelihood,
     GaussianRangeLikelihood,
     LinkMeasurements,
+    LinkRanges,
     MarginalDirectLikelihood,
     Prior,
     gaussian_log_prior,
@@ -135,6 +157,72 @@ def _agent_iteration(name, meas, prior, quick):
     method.run(meas, prior, np.random.default_rng(1), method.make_options({"n_iterations": 1}))
     opts = method.make_options({"n_iterations": 4 if quick else 8})
     return method.run(meas, prior, np.random.default_rng(1), opts).timing.per_agent_iteration_s
+
+
+FILTERS = {
+    "dipnet": ("dipnet", {}),
+    "two_step_paper": ("corr", {"outlier_nats": float("inf"), "model_error_m": 0.0}),
+    "two_step_bounded": ("corr", {"outlier_nats": 10.0, "model_error_m": 0.3}),
+}
+"""The filters of :func:`filter_report`: figure name → (registered method, options)."""
+
+
+def filter_report(quick: bool = False) -> dict[str, float]:
+    """Cost per agent-iteration of the safeguarded DiPNet and of the two-step EL-DPF in its
+    paper form and bounded, against one likelihood sweep measured in the same rounds (the
+    ``filter.*`` figures of the module docstring)."""
+    from phyloc.localization.direct import link_likelihood
+
+    real, liks, rng = make_network(scenario="winner2_c2", seed=5)
+    net = real.network
+    pos = net.positions[0]
+    n = pos.shape[0]
+    centers = informed_centers(pos, 5.0, rng=rng)
+    X = gaussian_priors(centers, 10.0, 1000, rng)
+    prior = Prior(X, lambda x: gaussian_log_prior(x, centers, 10.0), "truth-free")
+    links = real.links[0]
+    d = net.distances(0)
+    var = 10.0 ** rng.uniform(-4.0, -0.5, d.size)  # the spread of Fig. 5's ZZB variances
+    nlos = rng.random(d.size) < 0.35
+    bias = np.where(nlos, rng.exponential(3.0, d.size), 0.0)
+    biased = d + bias + np.sqrt(var) * rng.normal(size=d.size)
+    meas = LinkMeasurements(
+        n_nodes=net.n_nodes,
+        dim=net.dim,
+        anchor_nodes=net.anchor_index,
+        anchor_positions=pos[net.anchor_index][None],
+        links=(links,),
+        tables=(liks["env"].table,),
+        ranges={"corr": LinkRanges.single(biased, var)},
+    )
+    covs = np.repeat(np.eye(pos.shape[1])[None] * 100.0, n, axis=0)
+    n_it = 3 if quick else 6
+    repeat = 2 if quick else 3
+    fig: dict[str, float] = {}
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        for name, (method_name, table) in FILTERS.items():
+            method = METHODS[method_name]
+            warm = method.make_options({**table, "n_iterations": 1})
+            method.run(meas, prior, np.random.default_rng(1), warm)  # compile / load kernels
+            opts = method.make_options({**table, "n_iterations": n_it})
+            frozen = link_likelihood(meas, 0, opts).frozen(X, centers, covs, 1.0)
+            t_it = t_sweep = float("inf")
+            steps = 0.0
+            for _ in range(repeat):  # the filter and its reference, in turn
+                res = method.run(meas, prior, np.random.default_rng(1), opts)
+                t_it = min(t_it, res.timing.per_agent_iteration_s)
+                steps = float(res.diagnostics["annealing_steps"].sum()) / n_it
+                t_sweep = min(t_sweep, best_seconds(lambda f=frozen: f(X), repeat=3) / n)
+            fig[f"filter.{name}.agent_iteration_s"] = t_it
+            fig[f"filter.{name}.tempering_steps_per_iteration"] = steps
+            fig[f"filter.{name}.sweep_s_per_agent"] = t_sweep
+            fig[f"filter.{name}.sweeps_per_agent_iteration"] = t_it / t_sweep
+            fig[f"filter.{name}.sweeps_per_tempering_step"] = t_it / t_sweep / max(steps, 1.0)
+    finally:
+        numba.set_num_threads(before)
+    return fig
 
 
 def _slope(x, t):
@@ -223,6 +311,7 @@ def report(quick: bool = False) -> dict[str, float]:
         p2, _c2, X2, v2 = _state(r2, 1000, g2)
         tl.append(_sweep_rate(l2["env"], X2, p2, v2, repeat)[1] / n)  # per agent
     fig["dipnet.scaling_exponent_links"] = _slope([n - 1 for n in sizes], tl)
+    fig.update(filter_report(quick=quick))
     fig.update(table1.report(quick=quick))
     return fig
 
@@ -262,4 +351,31 @@ def summarize(fig: dict) -> str:
     )
     missing = "" if has_twin else f"\nMISSING: {MISSING}"
     t4 = f"\n\n{table1.summarize(fig)}" if "table1.q_sweep_links" in fig else ""
-    return f"{t1}{missing}\n\n{t2}\n\n{t3}{t4}"
+    t5 = f"\n\n{summarize_filters(fig)}" if "filter.dipnet.agent_iteration_s" in fig else ""
+    return f"{t1}{missing}\n\n{t2}\n\n{t3}{t5}{t4}"
+
+
+def summarize_filters(fig: dict) -> str:
+    """The printed form of :func:`filter_report`."""
+    from phyloc.reporting import format_table
+
+    rows = [
+        (
+            name,
+            1e3 * fig[f"filter.{name}.agent_iteration_s"],
+            fig[f"filter.{name}.tempering_steps_per_iteration"],
+            1e3 * fig[f"filter.{name}.sweep_s_per_agent"],
+            fig[f"filter.{name}.sweeps_per_agent_iteration"],
+            fig[f"filter.{name}.sweeps_per_tempering_step"],
+        )
+        for name in FILTERS
+    ]
+    head = [
+        "filter (C2, 30 agents, Q = 1000, 1 thread)",
+        "ms per agent-iteration",
+        "tempering steps per iteration",
+        "ms per sweep per agent (reference)",
+        "sweeps per agent-iteration",
+        "sweeps per tempering step",
+    ]
+    return format_table(rows, head)

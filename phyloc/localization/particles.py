@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from phyloc.localization import _kernels as K
+from phyloc.localization import _particle_kernels as PK
 
 
 def normalize_log_weights(lw) -> tuple[np.ndarray, int]:
@@ -110,12 +111,23 @@ def resample_agents(X, lw, rng: np.random.Generator, *arrays):
     ``arrays`` (each ``[n_agents, Q]``) are resampled with the same indices. Returns the list
     ``[X, *arrays]`` resampled; the new weights are uniform.
     """
-    n_agents, Q, _ = X.shape
+    X = np.ascontiguousarray(X, dtype=np.float64)
+    n_agents, Q, dim = X.shape
+    lw = np.asarray(lw, dtype=np.float64)
+    # the weights and their sums of systematic_resample, every agent at once (NumPy's exp and
+    # pairwise sum, the same values row by row); one uniform draw per agent, in agent order
+    w = np.exp(lw - np.max(lw, axis=1, keepdims=True))
+    total = w.sum(axis=1)
+    u0 = rng.random(n_agents)
     idx = np.empty((n_agents, Q), dtype=np.int64)
-    for a in range(n_agents):
-        idx[a] = systematic_resample(lw[a], Q, rng)
-    out = [np.take_along_axis(X, idx[:, :, None], axis=1)]
-    out += [np.take_along_axis(arr, idx, axis=1) for arr in arrays]
+    Xr = np.empty((n_agents, Q, dim))
+    PK.systematic_gather_kernel(w, total, u0, X, idx, Xr)
+    out = [Xr]
+    for arr in arrays:
+        arr = np.ascontiguousarray(arr)
+        r = np.empty(idx.shape, dtype=arr.dtype)
+        PK.gather_rows_kernel(arr, idx, r)
+        out.append(r)
     return out
 
 
@@ -179,12 +191,17 @@ def mh_moves(X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, *, n_moves, 
     """Random-walk Metropolis–Hastings sweeps per agent (resample-move).
 
     Target: ``prior · exp(λ ll_new + (1 − λ) ll_old)`` with ``λ [n_agents]``. Proposals are
-    ``X + N(0, (move_scale·std_q X)²)`` (:func:`~phyloc.localization._kernels.mh_propose_kernel`,
-    acceptance by :func:`~phyloc.localization._kernels.mh_accept_kernel`); ``logp`` and
-    ``new_fn`` evaluate the prior and the new log-likelihood at ``[n_agents, Q, dim]``,
-    ``old_fn`` (or None: ``ll_old ≡ 0``) the old one as ``old_fn(x, agents)`` on the rows of
-    the agents still bridging (``λ < 1``): where ``λ = 1`` the old likelihood has weight 0 and
-    is not evaluated (its ``ll_old`` entries of accepted moves become 0). Returns the moved
+    ``X + N(0, (move_scale·std_q X)²)``
+    (:func:`~phyloc.localization._particle_kernels.mh_propose_draw_kernel`, which draws the
+    normals of :func:`~phyloc.localization._kernels.mh_propose_kernel`), acceptance by
+    :func:`~phyloc.localization._kernels.mh_accept_kernel`. ``logp`` and ``new_fn`` evaluate
+    the prior and the new log-likelihood at ``[n_agents, Q, dim]``, ``old_fn`` (or None:
+    ``ll_old ≡ 0``) the old one as ``old_fn(x, agents)`` on the rows of the agents still
+    bridging (``λ < 1``): where ``λ = 1`` the old likelihood has weight 0 and is not evaluated
+    (its ``ll_old`` entries of accepted moves become 0). An ``old_fn`` with a true attribute
+    ``takes_prior`` is also given the prior at ``x``, ``old_fn(x, agents, lp_x=...)`` (rows of
+    ``agents``), which the sweep has already evaluated. Each sweep draws
+    ``rng.standard_normal(X.shape)`` then ``rng.random((n_agents, Q))``. Returns the moved
     ``(X, lp, ll_old, ll_new)`` (new arrays; the inputs are not modified).
     """
     n_agents, Q, _ = X.shape
@@ -193,17 +210,26 @@ def mh_moves(X, lp, ll_old, ll_new, lam, old_fn, new_fn, logp, rng, *, n_moves, 
     bridging = np.flatnonzero(lam < 1.0)
     if bridging.size == 0:
         old_fn = None  # weight 1 − λ = 0 everywhere: the old likelihood drops out
+    takes_prior = getattr(old_fn, "takes_prior", False)
     Xp = np.empty_like(X)
+    log_u = np.empty((n_agents, Q))
     for _ in range(n_moves):
-        K.mh_propose_kernel(X, rng.standard_normal(X.shape), float(move_scale), 1e-4, Xp)
+        # mh_propose_kernel(X, rng.standard_normal(X.shape), ...), the normals drawn in Numba
+        PK.mh_propose_draw_kernel(rng, X, float(move_scale), 1e-4, Xp)
         lpp = np.ascontiguousarray(logp(Xp), dtype=np.float64)
         lnp = np.ascontiguousarray(new_fn(Xp), dtype=np.float64)
         lop = np.zeros_like(lnp)
-        if old_fn is not None:
-            if bridging.size == n_agents:
-                lop[:] = old_fn(Xp)
+        if old_fn is None:
+            pass
+        elif bridging.size == n_agents:
+            lop[:] = old_fn(Xp, lp_x=lpp) if takes_prior else old_fn(Xp)
+        else:
+            xb = Xp[bridging]
+            if takes_prior:
+                lop[bridging] = old_fn(xb, agents=bridging, lp_x=lpp[bridging])
             else:
-                lop[bridging] = old_fn(Xp[bridging], agents=bridging)
-        log_u = np.log(rng.random((n_agents, Q)))
+                lop[bridging] = old_fn(xb, agents=bridging)
+        rng.random(out=log_u)
+        np.log(log_u, out=log_u)
         K.mh_accept_kernel(X, lp, ll_old, ll_new, Xp, lpp, lop, lnp, lam, log_u)
     return X, lp, ll_old, ll_new

@@ -158,8 +158,10 @@ class Prior:
         Q particles per agent [m], agents in ``measurements.agent_nodes`` order (DiPNet
         Algorithm 1, line 3).
     log_density : callable or None
-        ``log_density(x [n_agents, Q, dim]) -> [n_agents, Q]``, may be −inf outside a support;
-        None means the prior cannot be evaluated (the resample-move safeguard is then skipped).
+        ``log_density(x [n_agents, Q, dim]) -> [n_agents, Q]``, may be −inf outside a support,
+        row ``a`` a function of ``x[a]`` only (each agent's own prior; the filter reuses rows
+        evaluated in other calls); None means the prior cannot be evaluated (the resample-move
+        safeguard is then skipped).
     label : str
         Names the initialization in every output (e.g. ``"informed start"``).
     log_weights : [n_agents, Q] float64, optional
@@ -488,19 +490,37 @@ def _translate(X, lw, lp, ll_old, ll_new, old_fn, new_fn, logp, n_iter, ess_targ
     ll_old = np.where(moved[:, None], base - best_lp, ll_old)  # log π_old(x − s) − log prior(x)
     shift = best_s[:, None, :]
     template = best_X
+    back_template = template - shift
+    every = np.arange(n_agents)
 
-    def shifted_old(x, agents=None):
-        idx = np.arange(n_agents) if agents is None else np.asarray(agents)
-        full = np.array(template, dtype=np.float64, copy=True)
-        full[idx] = x
-        back = full - shift
+    def shifted_old(x, agents=None, lp_x=None):
+        """``log π_old(x − s) − log prior(x)`` at ``x`` (rows of ``agents``, all when None);
+        ``lp_x``: the prior at ``x`` when the caller has it (the prior is per agent, so its
+        rows are those of the full array evaluated here otherwise)."""
+        x = np.asarray(x, dtype=np.float64)
+        if agents is None:
+            idx = every
+            full = x  # every row given: the template drops out
+            back = x - shift
+        else:  # the other rows: any valid particles (the template), shifted back as well
+            idx = np.asarray(agents)
+            full = None
+            back = back_template.copy()
+            back[idx] = x - shift[idx]
         old = np.zeros((idx.size, x.shape[1])) if old_fn is None else old_fn(back[idx], idx)
         # the prior at x − s against the prior at x (the bridge holds prior(x) separately);
         # outside the prior's support at x the target is −inf whatever the old term says
         with np.errstate(invalid="ignore"):
-            ratio = (logp(back) - logp(full))[idx]
+            if lp_x is None:
+                if full is None:
+                    full = np.array(template, dtype=np.float64, copy=True)
+                    full[idx] = x
+                ratio = (logp(back) - logp(full))[idx]
+            else:
+                ratio = logp(back)[idx] - lp_x
         return old + np.where(np.isnan(ratio), -np.inf, ratio)
 
+    shifted_old.takes_prior = True
     return best_X, best_lp, ll_old, best_ln, shifted_old
 
 
