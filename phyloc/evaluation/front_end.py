@@ -212,7 +212,7 @@ out (the start's undetermined agents, :func:`start_prior`, are reported at every
 
 def scored_pairs(net, links):
     """The ordered pairs DiPNet eq. (4) sums over: ``None`` (every pair) for a fully meshed
-    network, the directed ``links`` for a range-limited one (eq. (4) over the framework's
+    network, the directed ``links`` for a range-limited one (DiPNet eq. (4) over the framework's
     edges; :func:`~phyloc.evaluation.metrics.framework_distance_errors`)."""
     return None if net.comm_range_m is None else np.asarray(links)
 

@@ -67,7 +67,7 @@ range bias, pooled over snapshots). Cost per size: ``<s>.agents_<n>.<stage>_s`` 
 and ``.chain_s``, ``<s>.agents_<n>.peak_rss_mb``, ``<s>.agents_<n>.mean_neighbours``, the
 start's ``start.<s>.agents_<n>.undetermined_agent_fraction`` and, over several sizes,
 ``<method>.<s>.iteration_s_exponent`` / ``_link_exponent`` (drawn as ``<recipe>_cost.png``).
-In a range-limited network eq. (4) runs over the links
+In a range-limited network DiPNet eq. (4) runs over the links
 (:func:`~phyloc.evaluation.front_end.scored_pairs`). Series: error CDFs at
 ``experiment.cdf_agents``, per iteration at the largest network (snapshot 0): mean ESS,
 published std ``sqrt(tr C/dim)`` and actual error of the published means; with several snapshots

@@ -98,7 +98,7 @@ def framework_distance_errors(
     agent–anchor pair once, an anchor–anchor pair never. All pairs count, linked or not.
 
     With ``pairs`` (ordered ``(u, v)``, e.g. the directed links of a range-limited network)
-    the sum runs over those pairs whose ``u`` is an agent: eq. (4) over the edges of the
+    the sum runs over those pairs whose ``u`` is an agent: DiPNet eq. (4) over the edges of the
     framework's graph, which for a fully meshed network are all its pairs. A network of a
     thousand agents has ~10⁶ pairs but ~2.5·10⁴ links: over the links the metric costs what
     the links cost, and scores the distances the network measures.

@@ -1,6 +1,12 @@
 """Resident memory of this process: the current and peak RSS, and a reset of the peak so a
 task can measure its own (the tracking memory study, the localization experiment's
-``peak_rss_mb`` per network size)."""
+``peak_rss_mb`` per network size).
+
+References
+----------
+Linux ``proc(5)``: ``/proc/self/status`` (``VmRSS``, ``VmHWM``) and ``/proc/self/clear_refs``
+(writing 5 resets the peak RSS, Linux >= 4.0); POSIX ``getrusage`` (``ru_maxrss``).
+"""
 
 from __future__ import annotations
 
