@@ -18,11 +18,16 @@ both (``torch.set_num_threads(1)``, Numba and FFTs limited to one thread). Figur
 ``sionna.one_link_sionna_s``               the same for Sionna's synthesis of one link (timed in
                                            blocks alternating with phyloc's)
 ``sionna.one_link_ratio``                  Sionna's latency over phyloc's
+``sionna.one_link_validation_s``           median latency of the pilot checks a one-link call
+                                           makes (:func:`~phyloc.phy.waveform.check_symbols`,
+                                           once in the synthesis and once in the table)
+``sionna.one_link_validation_share``       that over ``one_link_phyloc_s`` (goal <= 0.1)
 ``sionna.max_rel_diff``                    max |R_phyloc − S·h_sionna| / max |R| of the
                                            noise-free complex128 signals (the two compute the
                                            same thing)
 
-Without Sionna the figures are absent and the table says how to install it.
+Without Sionna only the one-link latency of phyloc and its validation share are measured, and
+the table says how to install Sionna.
 """
 
 from __future__ import annotations
@@ -34,6 +39,7 @@ import numpy as np
 
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
+from phyloc.phy.waveform import check_symbols
 
 try:
     from phyloc.benchmarks._timing import best_seconds
@@ -111,10 +117,44 @@ def _median_latencies(fns: dict, n=30, block=25, settle=5) -> dict:
     return {name: statistics.median(t) for name, t in times.items()}
 
 
+def _one_link(quick: bool, sionna: bool) -> dict[str, float]:
+    """The one-link figures: phyloc's synthesis + table, its pilot checks and (``sionna``)
+    Sionna's synthesis, timed in alternating blocks at the default thread counts."""
+    sys1, S1, p1, rng1 = make_batch(1, seed=3)
+
+    def ours_one():
+        correlation_tables(synthesize(p1, S1, sys1, rng1), S1, sys1, beta=8.0)
+
+    def checks():  # what ours_one spends validating its pilots
+        check_symbols(S1, sys1)
+        check_symbols(S1, sys1)
+
+    fns = {"phyloc": ours_one, "checks": checks}
+    n = 20 if quick else 100
+    if not sionna:
+        med = _median_latencies(fns, n)
+    else:
+        import torch
+
+        one = SionnaLinks(sys1, S1, p1, precision="single")
+        with torch.no_grad():  # in turn, so that the medians see the same load
+            med = _median_latencies({"sionna": one.received, **fns}, n)
+    fig = {
+        "sionna.one_link_phyloc_s": med["phyloc"],
+        "sionna.one_link_validation_s": med["checks"],
+        "sionna.one_link_validation_share": med["checks"] / med["phyloc"],
+    }
+    if sionna:
+        fig["sionna.one_link_sionna_s"] = med["sionna"]
+        fig["sionna.one_link_ratio"] = med["sionna"] / med["phyloc"]
+    return fig
+
+
 def report(quick: bool = False) -> dict[str, float]:
-    """Measure every figure of the module docstring (none without Sionna)."""
+    """Measure every figure of the module docstring (without Sionna only phyloc's one-link
+    latency and its validation share)."""
     if not available():
-        return {}
+        return _one_link(quick, sionna=False)
     import numba
     import torch
 
@@ -150,17 +190,7 @@ def report(quick: bool = False) -> dict[str, float]:
         torch.set_num_threads(threads[0])
         limit_threads(max(threads[1], threads[2]))
     # one link at a time, default threads: phyloc's synthesis + table vs Sionna's synthesis
-    sys1, S1, p1, rng1 = make_batch(1, seed=3)
-    one = SionnaLinks(sys1, S1, p1, precision="single")
-
-    def ours_one():
-        correlation_tables(synthesize(p1, S1, sys1, rng1), S1, sys1, beta=8.0)
-
-    with torch.no_grad():  # in turn, so that both medians see the same load
-        med = _median_latencies({"sionna": one.received, "phyloc": ours_one}, 20 if quick else 100)
-    fig["sionna.one_link_sionna_s"] = med["sionna"]
-    fig["sionna.one_link_phyloc_s"] = med["phyloc"]
-    fig["sionna.one_link_ratio"] = fig["sionna.one_link_sionna_s"] / fig["sionna.one_link_phyloc_s"]
+    fig.update(_one_link(quick, sionna=True))
     return fig
 
 
@@ -168,8 +198,15 @@ def summarize(fig: dict) -> str:
     """The printed form of :func:`report`'s figures."""
     from phyloc.reporting import format_table
 
+    checks = (
+        f"pilot checks {fig['sionna.one_link_validation_s'] * 1e6:.1f} us = "
+        f"{100 * fig['sionna.one_link_validation_share']:.1f} % of it"
+    )
     if "sionna.synthesis_links_per_s" not in fig:
-        return INSTALL
+        return (
+            f"{INSTALL}\none link at a time (default threads): phyloc synthesis + table "
+            f"{fig['sionna.one_link_phyloc_s'] * 1e6:.0f} us, {checks}"
+        )
     ours = fig["sionna.synthesis_links_per_s"]
     rows = [
         ("phyloc synthesize (pilots + AWGN)", ours, 1e6 / ours, "reference"),
@@ -195,7 +232,7 @@ def summarize(fig: dict) -> str:
     t1 = format_table(rows, ["work", "links/s", "us/link", "ratio"])
     lat = (
         f"one link at a time (default threads): phyloc synthesis + table "
-        f"{fig['sionna.one_link_phyloc_s'] * 1e6:.0f} us, Sionna synthesis alone "
+        f"{fig['sionna.one_link_phyloc_s'] * 1e6:.0f} us ({checks}), Sionna synthesis alone "
         f"{fig['sionna.one_link_sionna_s'] * 1e6:.0f} us: "
         f"{fig['sionna.one_link_ratio']:.1f}x"
     )

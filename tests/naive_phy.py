@@ -138,3 +138,32 @@ def normal_rows_py(seeds, scale, zx, zf, zk, m):
                     break
             out[i, j] = -scale[i] * x if neg else scale[i] * x
     return out
+
+
+# -- fused pipeline kernels (twins of phyloc.phy._pipeline_kernels) ---------------------------
+def noisy_synthesize_numpy(
+    seeds, scale, zx, zf, zk, symbols, tx_index, delays, gains, offsets, omega, n_first, N
+):
+    """Plain twin of :func:`phyloc.phy._pipeline_kernels.noisy_synthesize_kernel`: the noise
+    rows of :func:`normal_rows_py` (real and imaginary parts interleaved) through
+    :func:`synthesize_numpy` (returns ``[n_links, N]``)."""
+    noise = normal_rows_py(seeds, scale, zx, zf, zk, 2 * N).view(np.complex128)
+    return synthesize_numpy(symbols, tx_index, delays, gains, offsets, omega, n_first, noise)
+
+
+def spectrum_padded_numpy(R, symbols, tx_index, a, b, L):
+    """Plain twin of :func:`phyloc.phy._pipeline_kernels.spectrum_padded_kernel` for rows
+    ``a … a + b − 1``: ``(spectrum rows, padded rows [b, L], finite)``; bin n at index n mod L."""
+    N = R.shape[1]
+    c = np.conj(R[a : a + b].astype(np.complex128)) * symbols[tx_index[a : a + b]]
+    padded = np.zeros((b, L), dtype=np.complex128)
+    n = np.arange(N) - (N - 1) // 2
+    padded[:, n % L] = c
+    return c, padded, bool(np.all(np.isfinite(R[a : a + b])))
+
+
+def finite_nonzero_numpy(x):
+    """Plain twin of :func:`phyloc.phy._pipeline_kernels.finite_nonzero_kernel` (on floats)."""
+    if not np.all(np.isfinite(x)):
+        return 1
+    return 0 if np.any(x != 0) else 2

@@ -146,3 +146,42 @@ def test_a_plan_does_not_keep_the_callers_output_alive(rng):
     plan.execute(out=out)
     assert sys.getrefcount(out) == before
     np.testing.assert_allclose(out, np.fft.fft(plan.input), atol=1e-12)
+
+
+def test_recycled_arrays_of_several_shapes_come_back_round_after_round():
+    """A caller that asks for a few arrays per round (signals, spectra, tables) and drops them
+    gets the same memory every round; a free array nobody asks for is released after
+    :data:`~phyloc.phy.fft.RECYCLE_KEEP_CALLS` calls."""
+    phyfft.release_recycled()
+    small = (8, phyfft.RECYCLE_MIN_BYTES // (8 * 16))
+    large = (8, 2 * small[1])
+    rounds = []
+    for _ in range(3):
+        a, b, c = (phyfft.recycled_empty(s) for s in (small, small, large))
+        rounds.append({x.ctypes.data for x in (a, b, c)})
+        del a, b, c
+    assert len(rounds[0]) == 3 and rounds[1] == rounds[0] and rounds[2] == rounds[0]
+    # calls that do not take the large one, which stays free
+    held = [phyfft.recycled_empty(small) for _ in range(phyfft.RECYCLE_KEEP_CALLS)]
+    assert any(r[1].shape == large for r in phyfft._recycled)
+    held.append(phyfft.recycled_empty(small))
+    assert not any(r[1].shape == large for r in phyfft._recycled)
+    del held
+    phyfft.release_recycled()
+
+
+def test_recycling_more_arrays_than_it_tracks():
+    """Past :data:`~phyloc.phy.fft.RECYCLE_MAX_ARRAYS` the longest idle free arrays make room,
+    held ones are never handed out again, and every array is writable on its own."""
+    phyfft.release_recycled()
+    shapes = [(8, phyfft.RECYCLE_MIN_BYTES // (8 * 16) + k) for k in range(12)]
+    held = [phyfft.recycled_empty(s) for s in shapes[:6]]
+    for s in shapes:  # dropped at once
+        phyfft.recycled_empty(s)
+    held += [phyfft.recycled_empty(s) for s in shapes[6:]]
+    assert len(phyfft._recycled) <= phyfft.RECYCLE_MAX_ARRAYS
+    for i, a in enumerate(held):
+        a[...] = i
+    assert all(np.all(a == i) for i, a in enumerate(held))
+    del held
+    phyfft.release_recycled()

@@ -14,7 +14,14 @@ bench_sionna = _import_benchmark("phyloc.benchmarks.bench_sionna")
 
 def test_without_sionna_the_benchmark_says_how_to_install_it(monkeypatch, capsys):
     monkeypatch.setattr(bench_sionna, "available", lambda: False)
-    assert bench_sionna.report(quick=True) == {}
+    fig = bench_sionna.report(quick=True)  # phyloc's one-link figures only
+    assert set(fig) == {
+        "sionna.one_link_phyloc_s",
+        "sionna.one_link_validation_s",
+        "sionna.one_link_validation_share",
+    }
+    share = fig["sionna.one_link_validation_s"] / fig["sionna.one_link_phyloc_s"]
+    assert fig["sionna.one_link_validation_share"] == share > 0
     assert main(["bench", "sionna", "--quick"]) == 0
     assert 'pip install "phyloc[sionna]"' in capsys.readouterr().out
 

@@ -44,7 +44,7 @@ from numba import njit
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
-from phyloc.phy import _kernels
+from phyloc.phy import _kernels, _pipeline_kernels
 from phyloc.phy import fft as _fft
 from phyloc.phy._kernels import _lagrange_eval
 from phyloc.phy.system import C0, OFDMSystem
@@ -366,7 +366,8 @@ def correlation_tables(
         :func:`phyloc.phy.fft.aligned_empty` for SIMD alignment. Without it the values go to
         :func:`phyloc.phy.fft.recycled_empty`, which reuses the memory of a dropped table of
         the same size: fresh pages would cost the operating system's zeroing (L·16 bytes per
-        link, ~10 µs at β ≈ 8 against ~66 µs for the FFT; ``phyloc bench phy``).
+        link, ~10 µs at β ≈ 8 against ~66 µs for the FFT; ``phyloc bench phy``). The
+        spectrum always goes there.
 
     Returns
     -------
@@ -414,18 +415,18 @@ def correlation_tables(
     if tx.shape != (n_links,) or (n_links and (tx.min() < 0 or tx.max() >= S.shape[0])):
         raise ValidationError("tx_index", tx, f"[n_links] indices into 0 … {S.shape[0] - 1}")
     tx = np.ascontiguousarray(tx)
-    nv = system.noise_power_w if noise_var is None else noise_var
-    nv = np.broadcast_to(np.asarray(nv, dtype=np.float64), (n_links,)).copy()
-    if not np.all(np.isfinite(nv)) or np.any(nv <= 0):
+    if noise_var is None:  # the system's σ²: one float, checked without array temporaries
+        nv = np.full(n_links, float(system.noise_power_w))
+        ok = math.isfinite(nv[0]) and nv[0] > 0 if n_links else True
+    else:
+        nv = np.broadcast_to(np.asarray(noise_var, dtype=np.float64), (n_links,)).copy()
+        ok = bool(np.all(np.isfinite(nv))) and not np.any(nv <= 0)
+    if not ok:
         raise ValidationError("noise_var", nv, "must be finite and > 0 W")
     chunk = v.integer("chunk", chunk, minimum=1)
 
     L = fft_length(system, beta)
-    spectrum = np.empty((n_links, N), np.complex128)
-    serial = n_links < _kernels.SERIAL_BELOW
-    kernel = _kernels.spectrum_serial_kernel if serial else _kernels.spectrum_kernel
-    if not kernel(R, S, tx, spectrum):
-        v.check_finite("R", R)
+    spectrum = _fft.recycled_empty((n_links, N))  # as values: no fresh pages to fault in
     if out is None:
         values = _fft.recycled_empty((n_links, L))
     elif (
@@ -441,9 +442,21 @@ def correlation_tables(
         )
     else:
         values = out
+    # per chunk, one pass over R writes c = R^* S into the table's spectrum and straight into
+    # the padded input of the FFT (and checks that R is finite)
+    kernel = _pipeline_kernels.spectrum_padded_kernel
+    finite = True
+    h = (N - 1) // 2
     for a in range(0, n_links, chunk):
         b = min(a + chunk, n_links)
-        _fft.batch_fft(b - a, L).centered(spectrum[a:b], out=values[a:b])
+
+        def fill(buf, a=a):
+            nonlocal finite
+            finite &= kernel(R, S, tx, a, spectrum, buf)
+
+        _fft.batch_fft(b - a, L).filled(fill, b - a, h, out=values[a:b])
+    if not finite:
+        v.check_finite("R", R)
     energy = np.empty(S.shape[0])
     moment2 = np.empty(S.shape[0])
     _kernels.symbol_moments_kernel(S, -float((N - 1) // 2), energy, moment2)

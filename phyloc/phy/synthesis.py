@@ -22,7 +22,8 @@ import math
 import numpy as np
 
 from phyloc.errors import ValidationError
-from phyloc.phy import _gauss, _kernels
+from phyloc.phy import _gauss, _kernels, _pipeline_kernels
+from phyloc.phy import fft as _fft
 from phyloc.phy._gauss import ZIG_F, ZIG_K, ZIG_X
 from phyloc.phy._kernels import SERIAL_BELOW
 from phyloc.phy.paths import PathSet
@@ -63,18 +64,26 @@ def complex_noise(shape, noise_var, rng: np.random.Generator) -> np.ndarray:
     return z.view(np.complex128).reshape(shape)
 
 
-def _fill_noise(z, nv, rng):
-    """Fill the float rows ``z [rows, 2M]`` (complex rows, interleaved) with ``CN(0, nv)``;
-    ``nv`` is a scalar or one variance per row."""
-    rows = z.shape[0]
+def _noise_streams(rows: int, nv, rng):
+    """``(seeds, scale)`` of ``rows`` noise rows: one 64-bit seed per row drawn from ``rng``
+    and the standard deviation ``sqrt(nv/2)`` of each row's real and imaginary parts (``nv`` a
+    scalar or one variance per row)."""
     scale = np.sqrt(nv / 2.0)
     if scale.ndim == 1:
         per_row = np.repeat(scale, rows // max(scale.size, 1)) if scale.size else scale
     else:
         per_row = np.full(rows, float(scale))
     seeds = rng.integers(0, 2**64, size=rows, dtype=np.uint64, endpoint=False)
+    return seeds, np.ascontiguousarray(per_row, dtype=np.float64)
+
+
+def _fill_noise(z, nv, rng):
+    """Fill the float rows ``z [rows, 2M]`` (complex rows, interleaved) with ``CN(0, nv)``;
+    ``nv`` is a scalar or one variance per row."""
+    rows = z.shape[0]
+    seeds, per_row = _noise_streams(rows, nv, rng)
     kernel = _gauss.normal_rows_serial_kernel if rows < SERIAL_BELOW else _gauss.normal_rows_kernel
-    kernel(seeds, np.ascontiguousarray(per_row, dtype=np.float64), ZIG_X, ZIG_F, ZIG_K, z)
+    kernel(seeds, per_row, ZIG_X, ZIG_F, ZIG_K, z)
 
 
 def synthesize(
@@ -137,27 +146,54 @@ def synthesize(
                 f"range [{tx.min()}, {tx.max()}]",
                 f"must index symbols rows 0…{S.shape[0] - 1}",
             )
-    # the noise is drawn into `out`, which the kernel then reads as `noise` (each entry is read
-    # before it is written)
+    n_first = -float((N - 1) // 2)
+    serial = n_links < SERIAL_BELOW
     if rng is None:
         if noise_var not in (None, 0, 0.0):
             raise ValidationError("rng", None, "a Generator is required when noise_var > 0")
-        out = np.zeros((n_links, N), dtype=np.complex128)
+        out = _fft.recycled_empty((n_links, N))
+        out.fill(0)
+        kernel = _kernels.synthesize_serial_kernel if serial else _kernels.synthesize_kernel
+        kernel(S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, out, out)
+        return out
+    if noise_var is None:  # the system's σ²: one float, checked without array temporaries
+        nv = np.float64(system.noise_power_w)
+        if not (math.isfinite(nv) and nv >= 0):
+            raise ValidationError("noise_var", float(nv), "must be finite and >= 0 W")
     else:
-        nv = system.noise_power_w if noise_var is None else noise_var
-        nv = np.asarray(nv, dtype=np.float64)
+        nv = np.asarray(noise_var, dtype=np.float64)
         if nv.ndim > 1 or (nv.ndim == 1 and nv.shape != (n_links,)):
             raise ValidationError(
                 "noise_var", f"shape {nv.shape}", f"must be a scalar or [n_links] = [{n_links}]"
             )
         if not np.all(np.isfinite(nv)) or np.any(nv < 0):
             raise ValidationError("noise_var", nv, "must be finite and >= 0 W")
-        _check_rng(rng)
-        out = np.empty((n_links, N), dtype=np.complex128)
-        _fill_noise(out.view(np.float64), nv, rng)
-    n_first = -float((N - 1) // 2)
+    _check_rng(rng)
+    # one pass per link: its noise row is drawn into its output row, and the multipath sum is
+    # added while the row is in cache (the values of drawing all the noise first, bit for bit)
+    seeds, scale = _noise_streams(n_links, nv, rng)
+    # the memory of a dropped signal of the same size if there is one (fresh pages: a page
+    # fault and the kernel's zeroing for every 4 KiB, ~1000 per batch of 256 links)
+    out = _fft.recycled_empty((n_links, N))
     kernel = (
-        _kernels.synthesize_serial_kernel if n_links < SERIAL_BELOW else _kernels.synthesize_kernel
+        _pipeline_kernels.noisy_synthesize_serial_kernel
+        if serial
+        else _pipeline_kernels.noisy_synthesize_kernel
     )
-    kernel(S, tx, paths.delays, paths.gains, paths.offsets, system.omega, n_first, out, out)
+    kernel(
+        seeds,
+        scale,
+        ZIG_X,
+        ZIG_F,
+        ZIG_K,
+        S,
+        tx,
+        paths.delays,
+        paths.gains,
+        paths.offsets,
+        system.omega,
+        n_first,
+        out,
+        out.view(np.float64),
+    )
     return out

