@@ -320,6 +320,7 @@ def cmd_quickstart(args) -> int:
 
     from phyloc.evaluation.kinds import load_recipe
 
+    t0 = time.perf_counter()
     root = Path(args.dir)
     root.mkdir(parents=True, exist_ok=True)
     try:
@@ -344,7 +345,13 @@ def cmd_quickstart(args) -> int:
     print(f"\n== 2/2 evaluate DiPNet and two-step methods on {h5} ==", flush=True)
     ev = args.parse_args(["evaluate", str(h5), "--out", str(out), *common])
     del recipe
-    return cmd_evaluate(ev)
+    status = cmd_evaluate(ev)
+    print(
+        f"quickstart: {time.perf_counter() - t0:.0f} s in all (a first run includes compiling "
+        "the Numba kernels, which later runs load from the cache; the runtimes above leave "
+        "compilation out)"
+    )
+    return status
 
 
 def _quickstart_recipe_text() -> str:

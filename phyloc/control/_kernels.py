@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from phyloc._jit import by_threads
+
 #: Below this distance a node has no direction and adds no information [m].
 COINCIDENT_M = 1e-9
 
@@ -56,6 +58,7 @@ def _solve_small(M, A, X):
             X[r, c] = W[r, d + c]
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def level_kernel(
     covs, F, Q, means, positions, static_info, inv_var, comm_range, out_covs, out_cost

@@ -13,42 +13,64 @@ are documented in ``datasets/README.md`` and the user guide's recipe pages.
 
 from __future__ import annotations
 
+import importlib
+from collections.abc import Iterator, Mapping
+
 from phyloc import config
 from phyloc.errors import ValidationError
-from phyloc.evaluation.belief_shift_experiment import BELIEF_SHIFT
-from phyloc.evaluation.cci_experiment import CCI
-from phyloc.evaluation.control_experiment import CONTROL
-from phyloc.evaluation.direct_tracking_experiment import DIRECT_TRACKING
 from phyloc.evaluation.experiment import Experiment
-from phyloc.evaluation.localization_experiment import (
-    DATASET_LOCALIZATION,
-    LOCALIZATION,
-    check_dataset_recipe,
-)
-from phyloc.evaluation.ranging_experiment import RANGING
-from phyloc.evaluation.static_experiment import STATIC
-from phyloc.evaluation.tracking_experiment import TRACKING
 
-#: ``kind -> Experiment``: every recipe kind ``phyloc evaluate`` runs.
-EXPERIMENTS: dict[str, Experiment] = {
-    e.kind: e
-    for e in (
-        RANGING,
-        LOCALIZATION,
-        TRACKING,
-        STATIC,
-        DIRECT_TRACKING,
-        CONTROL,
-        CCI,
-        BELIEF_SHIFT,
-    )
+#: ``kind -> (module, name)`` of each experiment, in the order the command line lists them.
+_WHERE = {
+    "ranging": ("ranging_experiment", "RANGING"),
+    "localization": ("localization_experiment", "LOCALIZATION"),
+    "tracking": ("tracking_experiment", "TRACKING"),
+    "static": ("static_experiment", "STATIC"),
+    "direct_tracking": ("direct_tracking_experiment", "DIRECT_TRACKING"),
+    "control": ("control_experiment", "CONTROL"),
+    "cci": ("cci_experiment", "CCI"),
+    "belief_shift": ("belief_shift_experiment", "BELIEF_SHIFT"),
 }
 
+
+class _Registry(Mapping):
+    """``kind -> Experiment``, importing an experiment's module when its kind is first looked
+    up: a command imports the one experiment it runs, not all of them (with their methods,
+    analyses and plotting), which keeps the start of every command short."""
+
+    def __getitem__(self, kind: str) -> Experiment:
+        module, name = _WHERE[kind]
+        return getattr(importlib.import_module(f"phyloc.evaluation.{module}"), name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(_WHERE)
+
+    def __len__(self) -> int:
+        return len(_WHERE)
+
+    def __repr__(self) -> str:
+        return f"EXPERIMENTS({', '.join(_WHERE)})"
+
+
+#: ``kind -> Experiment``: every recipe kind ``phyloc evaluate`` runs (each experiment's module
+#: is imported when its kind is first looked up).
+EXPERIMENTS: Mapping[str, Experiment] = _Registry()
+
 #: Every recipe kind: the experiments and ``"dataset"``.
-KINDS = (*EXPERIMENTS, "dataset")
+KINDS = (*_WHERE, "dataset")
+
+
+def __getattr__(name: str):
+    """``DATASET_LOCALIZATION`` (the localization of a stored dataset), imported on use."""
+    if name == "DATASET_LOCALIZATION":
+        from phyloc.evaluation.localization_experiment import DATASET_LOCALIZATION
+
+        return DATASET_LOCALIZATION
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
-    "DATASET_LOCALIZATION",
+    "DATASET_LOCALIZATION",  # noqa: F822 (module __getattr__)
     "EXPERIMENTS",
     "KINDS",
     "experiment_for",
@@ -87,6 +109,8 @@ def validate_recipe(recipe) -> None:
         or :class:`~phyloc.config.RecipeError`).
     """
     if recipe.kind == "dataset":
+        from phyloc.evaluation.localization_experiment import check_dataset_recipe
+
         check_dataset_recipe(recipe)
         return
     experiment = experiment_for(recipe.kind)

@@ -18,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from phyloc._jit import by_threads
+
 
 @njit(cache=True)
 def log_normalize_kernel(lw, out):
@@ -87,6 +89,7 @@ def systematic_resample_kernel(weights, u0, out):
         out[i] = j
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def mh_propose_kernel(X, z, move_scale, min_std, out):
     """Random-walk proposals of a resample-move sweep: ``out = X + s·z`` per agent with
@@ -107,6 +110,7 @@ def mh_propose_kernel(X, z, move_scale, min_std, out):
                 out[a, q, k] = X[a, q, k] + s * z[a, q, k]
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def mh_accept_kernel(X, lp, ll_old, ll_new, Xp, lpp, lop, lnp, lam, log_u):
     """Metropolis–Hastings acceptance, in place: particle ``(a, q)`` takes its proposal when

@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from phyloc._jit import serial_twin
+from phyloc._jit import by_threads
 
 #: Ziggurat parameters for 256 layers: the start of the tail ``r`` and the common layer area
 #: ``v`` of ``f(x) = exp(−x²/2)`` (Marsaglia and Tsang 2000, Sec. 2).
@@ -111,6 +111,7 @@ def _wedge_or_tail(idx, x, s0, s1, s2, s3, zx, zf):
     return y < math.exp(-0.5 * x * x), x, s0, s1, s2, s3
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def normal_rows_kernel(seeds, scale, zx, zf, zk, out):
     """``out[i, :] = scale[i] · N(0, 1)`` draws of the stream seeded by ``seeds[i]``.
@@ -144,4 +145,4 @@ def normal_rows_kernel(seeds, scale, zx, zf, zk, out):
 #: :func:`normal_rows_kernel` compiled without threads, for a few rows: starting the thread
 #: pool costs more than it saves there, and on a busy machine a parallel region waits for
 #: every thread (20–60× the median latency of one link). The same code, the same values.
-normal_rows_serial_kernel = serial_twin(normal_rows_kernel)
+normal_rows_serial_kernel = normal_rows_kernel.serial_only()

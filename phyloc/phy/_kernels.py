@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from phyloc._jit import serial_twin
+from phyloc._jit import by_threads
 
 # Per path, a chunk of _LANES subcarriers is the path's seed phasor times a table of lane
 # offsets e^{jθm}; the seed advances by one complex multiplication per chunk and is re-seeded
@@ -79,6 +79,7 @@ def _synthesize_row(
         )
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first, noise, out):
     """Fill ``out[i, k]`` with ``S[tx[i], k] Σ_l α_l e^{−jω(n_first+k)τ_l} + noise[i, k]``.
@@ -119,12 +120,13 @@ def synthesize_kernel(symbols, tx_index, delays, gains, offsets, omega, n_first,
 
 #: :func:`synthesize_kernel` compiled without threads, for fewer than :data:`SERIAL_BELOW`
 #: links; the same code, so the same values.
-synthesize_serial_kernel = serial_twin(synthesize_kernel)
+synthesize_serial_kernel = synthesize_kernel.serial_only()
 
 
 # ---------------------------------------------------------------------------------------------
 # Correlation spectra:  c[i, n] = R[i, n]^* S[tx[i], n]   (DiPNet eq. (23))
 # ---------------------------------------------------------------------------------------------
+@by_threads
 @njit(cache=True, parallel=True)
 def spectrum_kernel(R, symbols, tx_index, out):
     """``out[i, n] = conj(R[i, n]) · symbols[tx_index[i], n]``; returns whether R is finite.
@@ -150,7 +152,7 @@ def spectrum_kernel(R, symbols, tx_index, out):
 
 
 #: :func:`spectrum_kernel` without threads, for fewer than :data:`SERIAL_BELOW` links.
-spectrum_serial_kernel = serial_twin(spectrum_kernel)
+spectrum_serial_kernel = spectrum_kernel.serial_only()
 
 
 @njit(cache=True)
@@ -224,6 +226,7 @@ def _lagrange_eval(values, row, L, x, order):
     return acc
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def interp_kernel(values, rows, x, order, out):
     """``out[q] = Lagrange_order(values[rows[q]])(x[q])`` with x in grid units (periodic)."""
@@ -266,6 +269,7 @@ def _spectral_derivs(c, n, w, d):
     return F, F1, F2
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def refine_peaks_kernel(spectrum, n, w, d0, spacing, n_iter, out):
     """Newton iterations on g(d) = |F(d)|² from the grid maximum ``d0`` (per link).
@@ -294,6 +298,7 @@ def refine_peaks_kernel(spectrum, n, w, d0, spacing, n_iter, out):
         out[i] = d
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def spectral_eval_kernel(spectrum, rows, n, w, d, out):
     """Exact ``F(d) = Σ_k c_k e^{−j w n_k d}`` for ``spectrum[rows[q]]`` at ``d[q]``."""

@@ -26,6 +26,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from phyloc._jit import by_threads
+
 _BLOCK = 32
 _RESEED_BLOCKS = 16
 
@@ -214,6 +216,7 @@ def _newton_peak(x, n0, w, d0, spacing, n_iter):
     return d
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def refine_kernel(spectrum, n0, w, d0, spacing, n_iter, out):
     """``out[i]`` = Newton-refined maximum of ``|F_i|²`` from ``d0[i]`` (per link, parallel).
@@ -227,6 +230,7 @@ def refine_kernel(spectrum, n0, w, d0, spacing, n_iter, out):
         out[i] = _newton_peak(spectrum[i], n0, w, d0[i], spacing, n_iter)
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def correlate_kernel(spectrum, n0, w, d, out):
     """``out[i] = F_i(d[i]) = Σ_k c_{ik} e^{−j w n_k d_i}`` (exact, per link, parallel)."""
@@ -237,6 +241,7 @@ def correlate_kernel(spectrum, n0, w, d, out):
 # ---------------------------------------------------------------------------------------------
 # Residual spectra: c minus the contributions of estimated paths (SAGE E-step, SIC)
 # ---------------------------------------------------------------------------------------------
+@by_threads
 @njit(cache=True, parallel=True)
 def residual_kernel(spectrum, power, tx_index, n0, w, dist, gain, out):
     """``out[i] = c_i − Σ_p |S_n|² α_{ip}^* e^{+jwn d_{ip}}`` (``dist, gain [n_links, P]``)."""
@@ -282,6 +287,7 @@ def _sage_link(c, power, energy, n0, w, d, a, n_active, n_iter, spacing, n_searc
             _add_path(e, power, n0, w, d[p], -np.conj(a[p]))  # back to the residual
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def sage_kernel(
     spectrum,

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from phyloc._jit import by_threads
 from phyloc.phy.correlation import lagrange_eval
 from phyloc.ranging.numerics import correlate_derivs, newton_peak
 
@@ -55,6 +56,7 @@ def _link_distances(particles, r, c, ways, xs):
             xs[q] = ways * np.sqrt(acc)
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def direct_loglik_kernel(
     particles, offsets, nb_node, nb_row, nb_scale, centers, values, inv_h, order, out
@@ -83,6 +85,7 @@ def direct_loglik_kernel(
                 out[a, q] += s * (f.real * f.real + f.imag * f.imag)
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def gauss_loglik_kernel(
     particles,
@@ -164,6 +167,7 @@ def _tempered_ess(lw, delta, step):
     return s1 * s1 / s2
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def next_lambda_kernel(lw, delta, lam, ess_target, n_bisect, out):
     """Adaptive tempering: per agent, the largest ``λ' ∈ (λ, 1]`` whose incremental weights
@@ -245,6 +249,7 @@ def _mixture_eval(x, fl, n, keep, pk_d, base, half_prec, reach2):
 _NEGLIGIBLE_NATS = 37.0  # e^-37 < 2^-53: below half an ulp of a sum >= 1
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def mixture_loglik_kernel(
     particles, offsets, nb_node, pk_off, pk_d, pk_h, pk_c, s2, floor, ways, gamma, centers, out
@@ -284,6 +289,7 @@ def mixture_loglik_kernel(
                 )
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def mixture_grid_kernel(
     particles,
@@ -351,6 +357,7 @@ def mixture_grid_kernel(
             count[j] = m
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def mixture_table_kernel(
     offsets, pk_off, pk_d, pk_h, pk_c, s2, floor, lo, inv_h, count, t_off, out
@@ -400,6 +407,7 @@ def _cubic_cell(ym, y0, y1, y2, c):
     c[3] = (y2 - ym) / 6.0 + 0.5 * (y0 - y1)
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def mixture_tabulated_kernel(
     particles,
@@ -489,6 +497,7 @@ def mixture_tabulated_kernel(
                 out[r, q] += gamma * val[q]
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def peak_laplace_kernel(spectrum, rows, n0, w, d0, spacing, n_iter, inv_scale, out_d, out_h, out_c):
     """Refine each peak of ``ℓ(d) = |F(d)|²·inv_scale`` from its grid maximum and return its

@@ -20,6 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from phyloc._jit import by_threads
 from phyloc.phy.correlation import lagrange_eval
 
 
@@ -60,6 +61,7 @@ def _log_sum(terms, n):
     return top + np.log(tot)
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def sampled_direct_kernel(
     particles,
@@ -106,6 +108,7 @@ def sampled_direct_kernel(
             _add_message(out[a], msg, gamma)
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def sampled_gauss_kernel(
     particles,
@@ -160,6 +163,7 @@ def sampled_gauss_kernel(
             _add_message(out[a], msg, gamma)
 
 
+@by_threads
 @njit(cache=True, parallel=True)
 def sampled_mixture_kernel(
     particles,
