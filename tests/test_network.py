@@ -511,7 +511,7 @@ def test_constant_density_keeps_the_mean_neighbour_count():
 
 
 def test_density_excludes_region_and_3d_and_round_trips():
-    with pytest.raises(ValidationError, match="network.region_m"):
+    with pytest.raises(ValidationError, match=r"network\.region_m"):
         NetworkSpec.from_dict({"n_agents": 5, "density_per_km2": 10.0, "region_m": [9, 9]})
     with pytest.raises(ValidationError, match=r"density_per_km2"):
         NetworkSpec.from_dict({"n_agents": 5, "dim": 3, "density_per_km2": 10.0})

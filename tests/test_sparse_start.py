@@ -41,7 +41,7 @@ def _network(n, seed, comm=55.0):
     return make_network(spec, np.random.default_rng(seed))
 
 
-# -- kernels against loop-by-loop twins -----------------------------------------------------------
+# -- kernels against loop-by-loop twins ------------------------------------------------------------
 def _twin_point_cost(points, nbr, delta, w, c, one_sided):
     out = np.zeros(len(points))
     for p in range(len(points)):
@@ -90,7 +90,7 @@ def test_guttman_kernel_matches_its_twin_and_the_dense_stress(rng):
     assert edge_stress(g, X) == pytest.approx(ts, rel=1e-12)
 
 
-# -- SMACOF on the edges = SMACOF on the matrices ---------------------------------------------------
+# -- SMACOF on the edges = SMACOF on the matrices --------------------------------------------------
 def test_sparse_smacof_reaches_the_dense_smacof_stress(rng):
     net = _network(40, 3)
     p = net.positions[0]
@@ -122,7 +122,7 @@ def test_sparse_smacof_stress_never_increases_and_fixed_rows_stay(rng):
     np.testing.assert_array_equal(X[fixed], p[fixed])
 
 
-# -- landmark start ---------------------------------------------------------------------------------
+# -- landmark start --------------------------------------------------------------------------------
 def test_landmark_mds_recovers_the_shape_from_exact_complete_distances(rng):
     p = rng.uniform(0, 100, (50, 2))
     edges = np.array([[a, b] for a in range(50) for b in range(a + 1, 50)])
@@ -139,7 +139,7 @@ def test_landmark_mds_centres_each_component_and_leaves_isolated_nodes_at_zero(r
     np.testing.assert_array_equal(X[[4, 8]], 0.0)
 
 
-# -- the undetermined-agent rule --------------------------------------------------------------------
+# -- the undetermined-agent rule -------------------------------------------------------------------
 def test_undetermined_rule_on_hand_built_graphs():
     p = np.zeros((10, 2))
     # nodes 0-4 fully linked (main component), node 5 with two links into it, 6-8 a triangle
@@ -162,7 +162,7 @@ def test_undetermined_rule_on_hand_built_graphs():
     assert und[:6].all() and und[9]
 
 
-# -- the whole start, and the metric over the links -------------------------------------------------
+# -- the whole start, and the metric over the links ------------------------------------------------
 @pytest.mark.parametrize("one_sided", [False, True])
 def test_sparse_start_rejects_nlos_biased_ranges_like_the_dense_one(one_sided, rng):
     net = _network(80, 7)

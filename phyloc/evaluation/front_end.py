@@ -214,7 +214,7 @@ def scored_pairs(net, links):
     """The ordered pairs DiPNet eq. (4) sums over: ``None`` (every pair) for a fully meshed
     network, the directed ``links`` for a range-limited one (DiPNet eq. (4) over the framework's
     edges; :func:`~phyloc.evaluation.metrics.framework_distance_errors`)."""
-    return None if net.comm_range_m is None else np.asarray(links)
+    return None if getattr(net, "comm_range_m", None) is None else np.asarray(links)
 
 
 def _method_plan(methods, lspec):
@@ -370,6 +370,7 @@ def _run_outputs(key, res, meas, truth, pairs=None):
             is_anchor,
         ),
         key + "|sec_per_agent_it": res.timing.per_agent_iteration_s,
+        key + "|jit_s": float(res.diagnostics.get("jit_s", 0.0)),
         key + "|iteration_s": res.timing.wall_s
         / max(res.timing.agent_iterations / max(len(agents), 1), 1.0),
         key + "|agent_snapshot_s": float(np.mean(res.timing.agent_s)),

@@ -240,9 +240,15 @@ class TrackingExperimentSpec:
             if "n_agents" not in s:
                 raise ValidationError(name + ".n_agents", "missing", "an integer >= 1")
             n = v.integer(name + ".n_agents", s["n_agents"], minimum=1)
-            r = float(s.get("comm_range_m", math.inf))
+            raw = s.get("comm_range_m", math.inf)
+            try:
+                r = math.nan if isinstance(raw, bool) else float(raw)
+            except (TypeError, ValueError):
+                r = math.nan
             if not r > 0 or math.isnan(r):
-                raise ValidationError(name + ".comm_range_m", r, "> 0 [m] (inf: fully connected)")
+                raise ValidationError(
+                    name + ".comm_range_m", raw, "a number > 0 [m] (inf: fully connected)"
+                )
             scen[tok] = {"n_agents": n, "comm_range_m": r}
         object.__setattr__(self, "scenarios", scen)
         v.integer("experiment.runs", self.runs, minimum=1)
