@@ -174,7 +174,7 @@ COMMANDS = [
     (
         "quickstart",
         "generate a small C2 dataset and compare DiPNet with two-step localization "
-        "on it (about a minute on 2 cores once the kernels are compiled)",
+        "on it (about 15 s on 2 cores; a first run also compiles the kernels, about 30 s)",
         "cmd_quickstart",
         [
             _arg(
