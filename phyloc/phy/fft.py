@@ -311,6 +311,11 @@ RECYCLE_MAX_ARRAYS = 8
 #: released: a pipeline that asks for a few arrays per round (a synthesis its signals, a table
 #: its spectrum and its values) finds each of them again in the next round.
 RECYCLE_KEEP_CALLS = 4
+#: A free array larger than this is released at the first call that does not take it: the
+#: tables of a 1000-agent network are gigabytes each, and one kept while the next realization
+#: (another number of links, so another shape) allocates its own doubled the peak memory
+#: (12.8 -> 23 GB). Zeroing fresh memory is ~15 % of a table's cost, not worth a second copy.
+RECYCLE_KEEP_MAX_BYTES = 1 << 28
 _recycled: list[list] = []  # [owner, array, refs of a free array, refs of a free owner, idle]
 
 
@@ -364,7 +369,7 @@ def recycled_empty(shape, dtype=np.complex128) -> np.ndarray:
         for rec in free:
             if rec is not hit:
                 rec[4] += 1
-                if rec[4] <= RECYCLE_KEEP_CALLS:
+                if rec[4] <= RECYCLE_KEEP_CALLS and rec[1].nbytes <= RECYCLE_KEEP_MAX_BYTES:
                     kept.append(rec)
         if hit is None:
             arr = aligned_empty(shape, dtype)
