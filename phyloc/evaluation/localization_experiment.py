@@ -85,7 +85,6 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -95,6 +94,7 @@ from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment, RunContext
 from phyloc.evaluation.front_end import localize_realization
+from phyloc.evaluation.localization_figures import INITS, _reads_tables, plot, plot_cost  # noqa: F401
 from phyloc.evaluation.rss import peak_rss_mb, reset_peak_rss, status_mb
 from phyloc.evaluation.sections import (
     LocalizationSpec,
@@ -103,11 +103,9 @@ from phyloc.evaluation.sections import (
     scenario_specs,
 )
 from phyloc.localization import METHODS as REGISTRY
-from phyloc.reporting import new_figure, save_figure
 
 METHODS = REGISTRY.family("direct")
 """The methods this experiment can run: every registered method of the direct family."""
-INITS = {"truth_free": "", "informed": "_informed", "gauge": "_gauge"}
 CDF_GRID_M = np.linspace(0.0, 30.0, 301)
 
 
@@ -199,14 +197,6 @@ def _dataset_task(payload, seed_seq):
 
 _CHI2_MEDIAN = {1: 0.454936423119573, 2: 2.0 * math.log(2.0), 3: 2.365973884375338}
 """Median of the χ² distribution with 1, 2, 3 degrees of freedom (NEES of a calibrated belief)."""
-
-
-def _reads_tables(name: str) -> bool:
-    """True for a direct method on correlation tables (DiPNet and its variants): the rows the
-    summary and the per-iteration panels single out, chosen by the method's inputs, not its
-    name."""
-    method = REGISTRY.get(name)
-    return method is not None and method.inputs == "tables"
 
 
 @dataclass(frozen=True)
@@ -649,150 +639,6 @@ def summary_lines(results: dict):
     )
     out.append(f"runtime per agent-iteration (JIT compilation excluded): {rt}")
     return out
-
-
-def plot(results: dict, path) -> None:
-    """DiPNet Fig. 5 layout from results only: RMSE vs agents per scenario, CDFs, ESS."""
-    f, ser, meta = results["figures"], results["series"], results["meta"]
-    toks = list(meta["scenarios"])
-    tracking = any(k.endswith(".rmse_by_snapshot") for k in ser)
-    n_rows = 3 if tracking else 2
-    fig, axes = new_figure(
-        n_rows, len(toks) + 1, squeeze=False, size=(4.6 * len(toks) + 4.6, 4.0 * n_rows)
-    )
-    agents = meta["agents"]
-    for j, tok in enumerate(toks):
-        ax = axes[0, j]
-        for init in meta["inits"]:
-            tag = tok + INITS[init]
-            ls = "-" if init == "truth_free" else ("--" if init == "informed" else ":")
-            for i, m in enumerate(meta["methods"]):
-                y = [f[f"{m}.{tag}.agents_{n}.framework_rmse_m"] for n in agents]
-                ax.semilogy(
-                    agents, y, ls, marker="os^vdx"[i % 6], color=f"C{i}", label=f"{m} ({init})"
-                )
-        ax.set_title(f"{tok}: framework distance RMSE")
-        ax.set_xlabel("number of agents")
-        ax.set_ylabel("RMSE [m]")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6, ncol=2)
-        ax = axes[1, j]
-        init = "truth_free" if "truth_free" in meta["inits"] else next(iter(meta["inits"]))
-        tag = tok + INITS[init]
-        for n, ls in zip(
-            sorted({*meta["agents"]} & set(_cdf_sizes(ser, meta, tag))), ("-", "--"), strict=False
-        ):
-            for i, m in enumerate(meta["methods"]):
-                k = f"{m}.{tag}.agents_{n}.error_cdf"
-                if k in ser:
-                    ax.plot(ser["cdf_grid_m"], ser[k], ls, color=f"C{i}", label=f"{m}, {n} agents")
-        ax.set_title(f"{tok} ({init.replace('_', '-')} start): error CDF")
-        ax.set_xlabel("absolute framework distance error [m]")
-        ax.set_ylabel("CDF")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=6)
-    n = max(agents)
-    ax = axes[0, -1]
-    ax2 = axes[1, -1]
-    tok = toks[0]
-    for i, m in enumerate(meta["methods"]):
-        if not _reads_tables(m):
-            continue
-        for init in meta["inits"]:
-            base = f"{m}.{tok}{INITS[init]}.agents_{n}"
-            if f"{base}.ess_by_iteration" in ser:
-                ax.semilogy(ser[f"{base}.ess_by_iteration"], color=f"C{i}", label=f"{m} ({init})")
-                ax2.semilogy(
-                    ser[f"{base}.published_std_by_iteration"],
-                    "--",
-                    color=f"C{i}",
-                    label=f"{m} ({init}) published std",
-                )
-                ax2.semilogy(
-                    ser[f"{base}.actual_err_by_iteration"],
-                    "-",
-                    color=f"C{i}",
-                    label=f"{m} ({init}) actual error",
-                )
-    ax.set_title(f"{tok}, {n} agents: mean ESS per iteration")
-    ax.set_xlabel("iteration")
-    ax2.set_title("published std vs actual error per axis [m]")
-    ax2.set_xlabel("iteration")
-    for a in (ax, ax2):
-        if a.get_legend_handles_labels()[0]:  # a run without per-iteration series draws none
-            a.legend(fontsize=6)
-        a.grid(True, which="both", alpha=0.3)
-    if tracking:
-        _plot_tracks(axes[2], ser, meta, toks)
-    fig.suptitle(
-        f"Direct vs two-step localization — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
-    )
-    save_figure(fig, path)
-    if len(agents) > 1 and any(k.endswith("_link_exponent") for k in f):
-        plot_cost(results, Path(path).with_name(Path(path).stem + "_cost.png"))
-
-
-def plot_cost(results: dict, path) -> None:
-    """``<recipe>_cost.png`` (runs over several sizes): per scenario token, the wall time of one
-    filter iteration over the whole network against the number of agents (log–log, with the
-    fitted exponent in the legend and a slope-1 guide), the chain of each method per
-    realization, and the peak RSS of a realization's task."""
-    f, meta = results["figures"], results["meta"]
-    agents = np.asarray(meta["agents"], dtype=float)
-    toks = list(meta["scenarios"])
-    fig, axes = new_figure(len(toks), 3, squeeze=False, size=(13.8, 4.0 * len(toks)))
-    for j, tok in enumerate(toks):
-        ax, ax2, ax3 = axes[j]
-        for init in meta["inits"]:
-            tag = tok + INITS[init]
-            for i, m in enumerate(meta["methods"]):
-                y = [f.get(f"{m}.{tag}.agents_{int(n)}.iteration_s", np.nan) for n in agents]
-                b = f.get(f"{m}.{tag}.iteration_s_exponent", np.nan)
-                ax.loglog(agents, y, marker="os^vdx"[i % 6], color=f"C{i}", label=f"{m}: N^{b:.2f}")
-                c = [f.get(f"{m}.{tag}.agents_{int(n)}.chain_s", np.nan) for n in agents]
-                ax2.loglog(agents, c, marker="os^vdx"[i % 6], color=f"C{i}", label=m)
-        y0 = f.get(f"{meta['methods'][0]}.{toks[0]}.agents_{int(agents[0])}.iteration_s", np.nan)
-        ax.loglog(agents, y0 * agents / agents[0], "k:", lw=1, label="∝ N")
-        rss = [f.get(f"{tok}.agents_{int(n)}.peak_rss_mb", np.nan) for n in agents]
-        ax3.loglog(agents, rss, "ko-")
-        ax.set_title(f"{tok}: one filter iteration, whole network")
-        ax.set_ylabel("wall time [s]")
-        ax2.set_title(f"{tok}: one realization per method (chain)")
-        ax2.set_ylabel("wall time [s]")
-        ax3.set_title(f"{tok}: peak RSS of a realization")
-        ax3.set_ylabel("MB")
-        for a in (ax, ax2, ax3):
-            a.set_xlabel("number of agents")
-            a.grid(True, which="both", alpha=0.3)
-        for a in (ax, ax2):
-            a.legend(fontsize=6)
-    fig.suptitle(f"Cost against network size — {meta['recipe']}")
-    save_figure(fig, path)
-
-
-def _plot_tracks(axes, ser, meta, toks):
-    """Per-snapshot framework RMSE of every method (truth-free start), one panel per token."""
-    n = max(meta["agents"])
-    for j, tok in enumerate(toks):
-        ax = axes[j]
-        for i, m in enumerate(meta["methods"]):
-            k = f"{m}.{tok}.agents_{n}.rmse_by_snapshot"
-            if k in ser:
-                ax.semilogy(np.asarray(ser[k]), color=f"C{i}", label=m)
-        ax.set_title(f"{tok}, {n} agents: framework RMSE per snapshot")
-        ax.set_xlabel("snapshot")
-        ax.set_ylabel("RMSE [m]")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6)
-    axes[-1].set_axis_off()
-
-
-def _cdf_sizes(ser, meta, tok):
-    return [
-        n
-        for n in meta["agents"]
-        if any(f"{m}.{tok}.agents_{n}.error_cdf" in ser for m in meta["methods"])
-    ]
 
 
 LOCALIZATION = LocalizationExperiment()
