@@ -157,6 +157,37 @@ def format_table(rows, headers) -> str:
     return "\n".join(out)
 
 
+def with_interval(figures: dict, name: str):
+    """The figure ``name`` with its 95 % interval as one table cell, ``"0.463 [0.41, 0.52]"``
+    (3 significant digits), or the bare number when the run has no finite interval for it
+    (a single unit, or a figure without one); None when the figure is missing.
+
+    >>> with_interval({"a": 0.4631, "a.ci_low": 0.41, "a.ci_high": 0.5249}, "a")
+    '0.463 [0.41, 0.525]'
+    """
+    x = figures.get(name)
+    lo, hi = figures.get(name + ".ci_low"), figures.get(name + ".ci_high")
+    if x is None or lo is None or hi is None or not (np.isfinite(lo) and np.isfinite(hi)):
+        return x
+    return f"{x:.3g} [{lo:.3g}, {hi:.3g}]"
+
+
+def draw_interval(ax, x, figures: dict, names, color, *, alpha: float = 0.15) -> bool:
+    """Shade the 95 % intervals of the figures ``names`` (one per ``x``) on ``ax``; returns
+    whether there was one to draw (runs of a single unit have none)."""
+    lo = np.array([_finite(figures.get(n + ".ci_low")) for n in names])
+    hi = np.array([_finite(figures.get(n + ".ci_high")) for n in names])
+    ok = np.isfinite(lo) & np.isfinite(hi)
+    if not ok.any():
+        return False
+    ax.fill_between(np.asarray(x, dtype=float)[ok], lo[ok], hi[ok], color=color, alpha=alpha, lw=0)
+    return True
+
+
+def _finite(x) -> float:
+    return math.nan if x is None else float(x)
+
+
 #: One resolution for every figure phyloc writes [dots per inch].
 FIGURE_DPI = 110
 

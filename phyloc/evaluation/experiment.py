@@ -16,7 +16,11 @@ says what its recipe means and nothing about how work is scheduled. The runner
 * :attr:`~Experiment.task` is a module-level function ``(payload, seed_sequence) -> dict``
   that returns the unit's own values (per realization, per run, per trial) — never a pooled
   number, so that an aggregation can carry an uncertainty for every figure;
-* :meth:`~Experiment.aggregate` pools them into flat ``figures`` and array ``series``;
+* :meth:`~Experiment.aggregate` pools them into flat ``figures`` and array ``series``; a figure
+  pooled over units is given as a :class:`~phyloc.evaluation.statistics.Pooled` value (a
+  comparison of two over the same units as a :class:`~phyloc.evaluation.statistics.Paired`
+  one), and the runner adds its 95 % interval and keeps its per-unit values
+  (:func:`~phyloc.evaluation.statistics.resolve`);
 * :meth:`~Experiment.meta` adds what a reader needs to interpret them;
 * :meth:`~Experiment.plot` and the ``summary_*`` methods only present ``results``.
 
@@ -37,6 +41,7 @@ from collections.abc import Callable
 from typing import ClassVar
 
 from phyloc._validate import check_keys, check_types
+from phyloc.evaluation.statistics import resolve
 from phyloc.parallel import run_tasks
 
 
@@ -161,6 +166,8 @@ class Experiment(abc.ABC):
             else []
         )
         figures, series = self.aggregate(plan, [k for k, _ in work], results, ctx)
+        # Pooled / Paired figures → value, 95 % interval, per-unit values (one place, every kind)
+        figures, series = resolve(figures, series, seed=ctx.seed)
         return {"figures": figures, "series": series, "meta": self.meta(plan, ctx)}
 
     @property

@@ -102,7 +102,9 @@ from phyloc.evaluation.sections import (
     network_specs,
     scenario_specs,
 )
+from phyloc.evaluation.statistics import Paired, Pooled
 from phyloc.localization import METHODS as REGISTRY
+from phyloc.reporting import with_interval
 
 METHODS = REGISTRY.family("direct")
 """The methods this experiment can run: every registered method of the direct family."""
@@ -363,20 +365,17 @@ def _aggregate(keys, results, exp, tokens):
     n_max = max(exp.agents)
     for tok in tokens:
         parts = [res for (t, _, _), res in zip(keys, results, strict=True) if t == tok]
-        le = np.concatenate([p["link_err_corr"] for p in parts])
-        lv = np.concatenate([p["link_valid_corr"] for p in parts])
-        los = np.concatenate([p["los"] for p in parts])
-        figures[f"{tok}.los_fraction"] = float(los.mean())
-        for cond, mask in (("los", los), ("nlos", ~los)):
-            sel = lv & mask
-            figures[f"{tok}.link_bias.{cond}_mean_m"] = (
-                float(le[sel].mean()) if sel.any() else float("nan")
+        figures[f"{tok}.los_fraction"] = Pooled.fraction([p["los"] for p in parts])
+        for cond, want in (("los", True), ("nlos", False)):
+            figures[f"{tok}.link_bias.{cond}_mean_m"] = Pooled.mean(
+                [p["link_err_corr"][p["link_valid_corr"] & (p["los"] == want)] for p in parts]
             )
         for n in exp.agents:
             runs = [r for (t, nn, _), r in zip(keys, results, strict=True) if t == tok and nn == n]
-            obs = _observable(runs)
-            if obs is not None:
-                figures[f"{tok}.agents_{n}.unobservable_pair_fraction"] = float(1.0 - obs.mean())
+            if _observable(runs) is not None:
+                figures[f"{tok}.agents_{n}.unobservable_pair_fraction"] = Pooled.fraction(
+                    [~r["observable"] for r in runs]
+                )
             if "neighbours" in runs[0]:
                 figures[f"{tok}.agents_{n}.mean_neighbours"] = float(
                     np.mean([r["neighbours"] for r in runs])
@@ -392,24 +391,15 @@ def _aggregate(keys, results, exp, tokens):
         for init in exp.inits:
             tag = tok + INITS[init]
             for n in exp.agents:
-                err = np.concatenate(
-                    [
-                        r.get(f"start|{init}|err", np.full(0, np.nan))
-                        for (t, nn, _), r in zip(keys, results, strict=True)
-                        if t == tok and nn == n
-                    ]
-                )
-                figures[f"start.{tag}.agents_{n}.framework_rmse_m"] = (
-                    float(math.sqrt(np.mean(err**2))) if err.size else float("nan")
-                )
-                und = [
-                    r.get(f"start|{init}|undetermined")
-                    for (t, nn, _), r in zip(keys, results, strict=True)
-                    if t == tok and nn == n
+                runs = [
+                    r for (t, nn, _), r in zip(keys, results, strict=True) if t == tok and nn == n
                 ]
+                start = Pooled.rmse([r.get(f"start|{init}|err", np.full(0, np.nan)) for r in runs])
+                figures[f"start.{tag}.agents_{n}.framework_rmse_m"] = start
+                und = [r.get(f"start|{init}|undetermined") for r in runs]
                 if und and all(u is not None for u in und):
-                    figures[f"start.{tag}.agents_{n}.undetermined_agent_fraction"] = float(
-                        np.concatenate(und).mean()
+                    figures[f"start.{tag}.agents_{n}.undetermined_agent_fraction"] = (
+                        Pooled.fraction(und)
                     )
             for m in exp.methods:
                 key = f"{m}|{init}"
@@ -422,10 +412,12 @@ def _aggregate(keys, results, exp, tokens):
                     err = np.concatenate([r[key + "|err"] for r in runs])
                     obs = _observable(runs)
                     base = f"{m}.{tag}.agents_{n}"
-                    figures[base + ".framework_rmse_m"] = float(math.sqrt(np.mean(err**2)))
+                    figures[base + ".framework_rmse_m"] = Pooled.rmse(
+                        [r[key + "|err"] for r in runs]
+                    )
                     if obs is not None:
-                        figures[base + ".framework_rmse_observable_m"] = (
-                            float(math.sqrt(np.mean(err[obs] ** 2))) if obs.any() else float("nan")
+                        figures[base + ".framework_rmse_observable_m"] = Pooled.rmse(
+                            [r[key + "|err"][r["observable"]] for r in runs]
                         )
                     if key + "|iteration_s" in runs[0]:
                         figures[base + ".iteration_s"] = float(
@@ -437,7 +429,7 @@ def _aggregate(keys, results, exp, tokens):
                     dim = runs[0]["dim"]
                     nees = np.concatenate([r[key + "|nees"] for r in runs])
                     nees = nees[np.isfinite(nees)]
-                    figures[base + ".nees"] = float(nees.mean()) if nees.size else float("nan")
+                    figures[base + ".nees"] = Pooled.mean([r[key + "|nees"] for r in runs])
                     figures[base + ".error_to_belief_ratio"] = (
                         float(math.sqrt(nees.mean() / dim)) if nees.size else float("nan")
                     )
@@ -446,8 +438,8 @@ def _aggregate(keys, results, exp, tokens):
                         if nees.size
                         else float("nan")
                     )
-                    figures[base + ".shape_difference_m"] = float(
-                        math.sqrt(np.mean([r[key + "|shape"] ** 2 for r in runs]))
+                    figures[base + ".shape_difference_m"] = Pooled.rmse(
+                        [r[key + "|shape"] for r in runs]
                     )
                     figures[base + ".ess_min"] = float(np.mean([r[key + "|ess_min"] for r in runs]))
                     figures[base + ".agent_snapshot_s"] = float(
@@ -465,6 +457,7 @@ def _aggregate(keys, results, exp, tokens):
                             series[f"{base}.{what}_by_iteration"] = np.mean(
                                 [r[f"{key}|{what}"] for r in runs], axis=0
                             )
+            _comparisons(figures, exp.methods, tag, exp.agents)
         for m in exp.methods:
             figures[f"{m}.runtime_per_agent_iteration_s"] = float(
                 np.mean([r[f"{m}|{i}|sec_per_agent_it"] for r in results for i in exp.inits])
@@ -492,6 +485,22 @@ def _aggregate(keys, results, exp, tokens):
                 if fit is not None:  # 1: linear in the links (the neighbourhoods grow at the
                     figures[f"{m}.{tag}.iteration_s_link_exponent"] = fit  # border)
     return figures, series
+
+
+def _comparisons(figures, methods, tag, agents):
+    """Paired ratios of ``framework_rmse_m`` over the same realizations: every method against
+    the start it ran from (``<m>_vs_start``) and the first method against every other
+    (``<first>_vs_<m>``); a ratio below 1 favours the method named first."""
+    for n in agents:
+        fig = f"{tag}.agents_{n}.framework_rmse_m"
+        start = figures.get(f"start.{fig}")
+        for m in methods:
+            if isinstance(start, Pooled) and start.den.sum() > 0:
+                figures[f"{m}_vs_start.{fig}"] = Paired(figures[f"{m}.{fig}"], start)
+            if m != methods[0]:
+                figures[f"{methods[0]}_vs_{m}.{fig}"] = Paired(
+                    figures[f"{methods[0]}.{fig}"], figures[f"{m}.{fig}"]
+                )
 
 
 def _chain_s(run, label, init) -> float:
@@ -576,22 +585,29 @@ def check_dataset_recipe(recipe) -> None:
 SUMMARY_HEADERS = ["scenario", "method"]
 
 
+#: The label of the start's row in the printed table: the coarse solution every filter starts
+#: from is computed centrally (from every link's range), the filters are distributed.
+START_ROW = "start (centralized)"
+
+
 def summary_rows(results: dict):
-    """Framework RMSE [m] per method and scenario token (columns: network sizes)."""
+    """Framework RMSE [m] per method and scenario token (columns: network sizes), with its
+    95 % interval when the run has one; the start each method ran from is the first row of a
+    scenario (labelled as the centralized solution it is)."""
     f, meta = results["figures"], results["meta"]
     rows = []
     for tok in meta["scenarios"]:
         for init in meta["inits"]:
             tag = tok + INITS[init]
-            for m in meta["methods"]:
-                name = f"{m} (oracle)" if m == "sage_los" else m
-                rows.append(
-                    (
-                        tag,
-                        name,
-                        *[f[f"{m}.{tag}.agents_{n}.framework_rmse_m"] for n in meta["agents"]],
-                    )
-                )
+            for m in ("start", *meta["methods"]):
+                name = {"start": START_ROW, "sage_los": "sage_los (oracle)"}.get(m, m)
+                cells = [
+                    with_interval(f, f"{m}.{tag}.agents_{n}.framework_rmse_m")
+                    for n in meta["agents"]
+                ]
+                if m == "start" and all(c is None for c in cells):
+                    continue
+                rows.append((tag, name, *cells))
     return rows
 
 
@@ -604,7 +620,11 @@ def summary_lines(results: dict):
     """ESS and runtime lines."""
     f, meta = results["figures"], results["meta"]
     n = max(meta["agents"])
-    out = ["framework distance RMSE [m] (DiPNet eq. (4)); informed-start rows are not truth-free"]
+    out = [
+        "framework distance RMSE [m] (DiPNet eq. (4)) [95 % interval over realizations]; "
+        "informed-start rows are not truth-free; the start is a centralized solution "
+        "(every link's range in one place), the methods are distributed"
+    ]
     for tok in meta["scenarios"]:
         for init in meta["inits"]:
             tag = tok + INITS[init]

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from phyloc.localization import METHODS as REGISTRY
-from phyloc.reporting import new_figure, save_figure
+from phyloc.reporting import draw_interval, new_figure, save_figure
 
 INITS = {"truth_free": "", "informed": "_informed", "gauge": "_gauge"}
 """Initializations and the suffix each gives the scenario token in figure names."""
@@ -44,12 +44,23 @@ def plot(results: dict, path) -> None:
         for init in meta["inits"]:
             tag = tok + INITS[init]
             ls = "-" if init == "truth_free" else ("--" if init == "informed" else ":")
-            for i, m in enumerate(meta["methods"]):
-                y = [f[f"{m}.{tag}.agents_{n}.framework_rmse_m"] for n in agents]
+            for i, m in enumerate(("start", *meta["methods"])):
+                names = [f"{m}.{tag}.agents_{n}.framework_rmse_m" for n in agents]
+                y = [f.get(k, np.nan) for k in names]
+                if m == "start" and not np.any(np.isfinite(np.asarray(y, dtype=float))):
+                    continue
+                color = "k" if m == "start" else f"C{i - 1}"
+                label = "start, centralized" if m == "start" else m
                 ax.semilogy(
-                    agents, y, ls, marker="os^vdx"[i % 6], color=f"C{i}", label=f"{m} ({init})"
+                    agents,
+                    y,
+                    ls,
+                    marker="*" if m == "start" else "os^vdx"[(i - 1) % 6],
+                    color=color,
+                    label=f"{label} ({init})",
                 )
-        ax.set_title(f"{tok}: framework distance RMSE")
+                draw_interval(ax, agents, f, names, color)
+        ax.set_title(f"{tok}: framework distance RMSE (bands: 95 % intervals)")
         ax.set_xlabel("number of agents")
         ax.set_ylabel("RMSE [m]")
         ax.grid(True, which="both", alpha=0.3)
