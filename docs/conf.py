@@ -102,5 +102,54 @@ def _methods_table() -> None:
     _write("methods.rst", "\n".join(rows) + "\n")
 
 
+def _rst(text: str) -> str:
+    """Plain text safe in a reST table cell (``|`` and ``*`` are markup)."""
+    return text.replace("\\", "\\\\").replace("|", "\\|").replace("*", "\\*")
+
+
+def _claims_table() -> None:
+    """Write ``_generated/claims.rst``: the claims ledger with every verdict recomputed now
+    from the stored runs (:func:`phyloc.evaluation.claims.check_ledger`)."""
+    from phyloc.evaluation.claims import check_ledger
+
+    report = check_ledger(HERE / "claims.toml", HERE / "results")
+    rows = []
+    for paper in dict.fromkeys(r["paper"] for r in report):
+        rows += [
+            f".. list-table:: {paper}",
+            "   :header-rows: 1",
+            "   :widths: 22 40 10 16 12",
+            "",
+            "   * - claim (where)",
+            "     - statement (our words); check",
+            "     - verdict",
+            "     - value [95 % interval]",
+            "     - stored run",
+        ]
+        for r in (r for r in report if r["paper"] == paper):
+            outs = r["outcomes"]
+            cells = []
+            for o in outs:
+                if o["exact"]:
+                    cells.append(f"{o['value']:.3g} (exact)")
+                else:
+                    cells.append(f"{o['value']:.3g} [{o['ci_low']:.3g}, {o['ci_high']:.3g}]")
+            verdict = f"**{r['verdict_now']}**"
+            if not r["matches"]:
+                verdict += f" (ledger: {r['verdict']})"
+            note = f" {_rst(r['note'])}" if r["note"] else ""
+            why = f" Explained by ``{r['explained_by']}``." if r["explained_by"] else ""
+            rows += [
+                f"   * - ``{r['id']}`` ({r['where']})",
+                f"     - {_rst(r['statement'])} ``{r['check']}``.{note}{why}",
+                f"     - {verdict}",
+                f"     - {'; '.join(cells)}",
+                f"     - ``{r['run']}``",
+            ]
+        rows.append("")
+    _write("claims.rst", "\n".join(rows) + "\n")
+
+
 _dataset_layout()
 _methods_table()
+_claims_table()

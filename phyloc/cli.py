@@ -109,6 +109,28 @@ COMMANDS = [
         ],
     ),
     (
+        "claims",
+        "the papers' claims with the verdicts their stored runs give at 95 %",
+        "cmd_claims",
+        [
+            _arg(
+                "--ledger",
+                default="docs/claims.toml",
+                metavar="PATH",
+                help="the claims ledger (default docs/claims.toml, from the repository root)",
+            ),
+            _arg(
+                "--results",
+                default="docs/results",
+                metavar="DIR",
+                help="the stored runs (default docs/results)",
+            ),
+            _arg("--paper", default=None, metavar="NAME", help="only this paper's claims"),
+            JSON,
+            _force(),
+        ],
+    ),
+    (
         "generate",
         "generate an HDF5 waveform dataset from a recipe",
         "cmd_generate",

@@ -76,6 +76,59 @@ def _generic_table(fig: dict) -> str:
     return format_table([(k, v) for k, v in fig.items()], ["figure", "value"])
 
 
+# -- claims ----------------------------------------------------------------------------------
+def cmd_claims(args) -> int:
+    """``phyloc claims``: every claim of the ledger with its verdict recomputed from the stored
+    runs; exits 1 when a recomputed verdict no longer matches the ledger."""
+    from phyloc.evaluation.claims import check_ledger
+    from phyloc.reporting import format_table
+
+    _check_outputs(args)
+    report = check_ledger(args.ledger, args.results)
+    if args.paper:
+        report = [r for r in report if r["paper"].lower() == args.paper.lower()]
+        if not report:
+            raise ValidationError("--paper", args.paper, "a paper the ledger names")
+    rows = [
+        (
+            r["id"],
+            r["paper"],
+            r["verdict_now"] + ("" if r["matches"] else f" (ledger: {r['verdict']})"),
+            _interval_text(r["outcomes"]),
+            r["run"],
+        )
+        for r in report
+    ]
+    print(format_table(rows, ["claim", "paper", "verdict", "95 % interval", "stored run"]))
+    changed = [r["id"] for r in report if not r["matches"]]
+    counts = {v: sum(r["verdict_now"] == v for r in report) for v in ("holds", "differs")}
+    undecided = len(report) - sum(counts.values())
+    print(
+        f"{len(report)} claims: {counts['holds']} hold, {counts['differs']} differ, "
+        f"{undecided} undecided"
+    )
+    figures = {f"{r['id']}.matches": float(r["matches"]) for r in report}
+    _write_json(args, figures, {"command": "claims", "claims": report})
+    if changed:
+        print(
+            f"phyloc: error: {len(changed)} verdict(s) no longer match the ledger: "
+            f"{', '.join(changed)}; update {args.ledger} deliberately or find what changed",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _interval_text(outcomes) -> str:
+    """The interval of a one-check claim, or the range of the checks of a claim with ``each``."""
+    if len(outcomes) == 1:
+        o = outcomes[0]
+        if o["exact"]:
+            return f"{o['value']:.3g} (exact)"
+        return f"{o['value']:.3g} [{o['ci_low']:.3g}, {o['ci_high']:.3g}]"
+    return f"{len(outcomes)} checks"
+
+
 # -- evaluate --------------------------------------------------------------------------------
 
 

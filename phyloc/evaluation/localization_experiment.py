@@ -73,6 +73,17 @@ In a range-limited network DiPNet eq. (4) runs over the links
 published std ``sqrt(tr C/dim)`` and actual error of the published means; with several snapshots
 ``<method>.<token>.agents_<n>.rmse_by_snapshot``.
 
+Uncertainty (:mod:`phyloc.evaluation.statistics`; the unit is a realization): the RMSE figures
+(methods and start, all pairs and observable pairs), ``shape_difference_m``, ``nees``,
+``<method>.<token>.agents_<n>.outlier_fraction`` (the share of pairs whose error exceeds
+:data:`OUTLIER_M`), the unobservable-pair and undetermined-agent fractions and the link biases
+carry ``.ci_low`` / ``.ci_high`` (95 %; bootstrap over realizations, the LOS fraction exact
+binomial) and their per-realization values in ``series`` (``<name>.units``). Paired ratios of
+``framework_rmse_m`` over the same realizations: ``<method>_vs_start.<token>.agents_<n>.
+framework_rmse_m.ratio`` (a method against the start it ran from) and
+``<first>_vs_<method>...ratio`` (the recipe's first method against each other one), each with
+its interval.
+
 References
 ----------
 DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
@@ -196,6 +207,10 @@ def _dataset_task(payload, seed_seq):
         system = ds.system
     return localize_realization(real, system, rspec, lspec, methods, inits, seed_seq)
 
+
+#: A pair's absolute framework distance error above this is an outlier [m] (DiPNet §V-A
+#: speaks of outliers beside "the sub-meter error range" of its Fig. 5 CDFs).
+OUTLIER_M = 1.0
 
 _CHI2_MEDIAN = {1: 0.454936423119573, 2: 2.0 * math.log(2.0), 3: 2.365973884375338}
 """Median of the χ² distribution with 1, 2, 3 degrees of freedom (NEES of a calibrated belief)."""
@@ -373,7 +388,8 @@ def _aggregate(keys, results, exp, tokens):
         for n in exp.agents:
             runs = [r for (t, nn, _), r in zip(keys, results, strict=True) if t == tok and nn == n]
             if _observable(runs) is not None:
-                figures[f"{tok}.agents_{n}.unobservable_pair_fraction"] = Pooled.fraction(
+                # pairs of one realization are not independent: bootstrap over realizations
+                figures[f"{tok}.agents_{n}.unobservable_pair_fraction"] = Pooled.mean(
                     [~r["observable"] for r in runs]
                 )
             if "neighbours" in runs[0]:
@@ -398,8 +414,8 @@ def _aggregate(keys, results, exp, tokens):
                 figures[f"start.{tag}.agents_{n}.framework_rmse_m"] = start
                 und = [r.get(f"start|{init}|undetermined") for r in runs]
                 if und and all(u is not None for u in und):
-                    figures[f"start.{tag}.agents_{n}.undetermined_agent_fraction"] = (
-                        Pooled.fraction(und)
+                    figures[f"start.{tag}.agents_{n}.undetermined_agent_fraction"] = Pooled.mean(
+                        und
                     )
             for m in exp.methods:
                 key = f"{m}|{init}"
@@ -414,6 +430,9 @@ def _aggregate(keys, results, exp, tokens):
                     base = f"{m}.{tag}.agents_{n}"
                     figures[base + ".framework_rmse_m"] = Pooled.rmse(
                         [r[key + "|err"] for r in runs]
+                    )
+                    figures[base + ".outlier_fraction"] = Pooled.mean(
+                        [np.abs(r[key + "|err"]) > OUTLIER_M for r in runs]
                     )
                     if obs is not None:
                         figures[base + ".framework_rmse_observable_m"] = Pooled.rmse(
