@@ -100,3 +100,21 @@ def test_cli_writes_the_figure_names(tmp_path, capsys):
     assert 0 < fig["belief_shift.max_over_c0_b"] < 0.5 and png.stat().st_size > 0
     assert main(["analyze", "belief-shift", "--nu", "-1", "--png", str(tmp_path / "b.png")]) == 2
     assert "nu" in capsys.readouterr().err
+
+
+def test_recipe_figures_are_exact_without_intervals():
+    """No randomness: the recipe's figures are those of the analysis, with no 95 % interval
+    keys and no per-unit values (there are no units)."""
+    from pathlib import Path
+
+    from phyloc.config import load_recipe
+    from phyloc.evaluation.belief_shift_experiment import BELIEF_SHIFT
+
+    recipe = load_recipe(Path(__file__).parents[1] / "datasets" / "dipnet_fig3_belief_shift.toml")
+    res = BELIEF_SHIFT.run(recipe, fast=True, progress=False)
+    f = res["figures"]
+    assert not [k for k in f if k.endswith((".ci_low", ".ci_high", ".ratio"))]
+    assert not [k for k in res["series"] if k.endswith(".units")]
+    assert f["belief_shift.two_step_at_10_over_c0_b"] == 10.0 / (1.0 + 1.0)  # δ/(1 + ν), ν = 1
+    ref = bs.figure3(1.0, recipe.system.n_subcarriers, 20.0, 81)["figures"]
+    assert f == {f"belief_shift.{k}": x for k, x in ref.items()}

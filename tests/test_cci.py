@@ -327,6 +327,28 @@ def test_recipe_runs_and_is_the_same_on_two_workers(tmp_path):
     assert set(one["meta"]["scenarios"]) == {"winner2_c2", "winner2_d1"}
 
 
+def test_figures_are_exact_or_grid_statistics_without_intervals():
+    """No CCI figure is pooled over units (one unit: one Monte Carlo distance, estimating the
+    CCI there): no interval keys, no per-unit values; the Monte Carlo figures are the grid
+    statistics of the per-distance means and standard errors in the series."""
+    spec = cci_experiment.CCIExperimentSpec(
+        scenarios=("exponential",), links=400, mc_points=3, points=50
+    )
+    res = cci_experiment.study(spec.scenarios, SYSTEM, spec, seed=3, progress=False)
+    f, s = res["figures"], res["series"]
+    assert not [k for k in f if k.endswith((".ci_low", ".ci_high", ".ratio"))]
+    assert not [k for k in s if k.endswith(".units")]
+    p = "cci.exponential"
+    d, m, se = (np.asarray(s[f"{p}.{k}"]) for k in ("mc_d0_m", "mc", "mc_se"))
+    assert d.size == m.size == se.size == 3 and np.all(se > 0)
+    pw = cci.expected_powers("exponential", d, SYSTEM)
+    closed = cci.cci_exponential(pw, cci.exponential_rates("exponential"), SYSTEM)
+    assert f[f"{p}.mc_z"] == pytest.approx(np.max(np.abs(m - closed) / se), rel=1e-12)
+    bound = cci.cci_bound(pw, SYSTEM)
+    assert f[f"{p}.mc_above_bound_z"] == pytest.approx(np.max((m - bound) / se), rel=1e-12)
+    assert f[f"{p}.mc.negative_above_m"] == cci.negative_above(d, m)
+
+
 # -- the expected SCF of eq. (35) ---------------------------------------------------------------
 @pytest.mark.parametrize("name", ["awgn", "exponential", "winner2_c2", "winner2_d1"])
 @pytest.mark.parametrize("d0", [0.2, 10.0, 200.0])

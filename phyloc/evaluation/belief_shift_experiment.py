@@ -17,6 +17,9 @@ Figures (all in units of the sample distance c0/B)::
 Series ``belief_shift.<curve>`` over ``belief_shift.delta``: ``dipnet`` (ascent from the
 truth), ``dipnet_global``, ``bound`` (Theorem 2), ``theorem1``, ``two_step``.
 
+Every figure is an exact computation (no tasks, no Monte Carlo units): none has ``.ci_low`` /
+``.ci_high`` keys (:mod:`~phyloc.evaluation.statistics`).
+
 References
 ----------
 DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and

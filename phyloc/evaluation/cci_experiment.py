@@ -26,6 +26,12 @@ Series: ``cci.s.d0_m``, ``.bound``, ``.exponential``, ``.awgn``, ``.p_los``,
 ``.other_power``, ``.min_bandwidth_hz``, ``cci.s.mc_d0_m``, ``.mc``, ``.mc_se`` and the
 expected SCF ``cci.s.scf`` over ``cci.s.scf_offset_m`` (±3 c0/B around the truth).
 
+No figure here has ``.ci_low`` / ``.ci_high`` keys (:mod:`~phyloc.evaluation.statistics`): the
+curves and their crossings are exact computations, and a unit (one Monte Carlo distance)
+estimates the CCI at its own distance, so no figure is pooled over units. The uncertainty of
+each Monte Carlo mean is its standard error over the links (``.mc_se``), in ``mc_z`` and
+``mc_above_bound_z`` and as the 95 % error bars (±1.96 s.e.) of the plot.
+
 References
 ----------
 DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
@@ -39,6 +45,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import stats
 
 from phyloc import _validate as v
 from phyloc.analysis.cci import (
@@ -56,6 +63,7 @@ from phyloc.analysis.cci import (
 )
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment, RunContext
+from phyloc.evaluation.statistics import CONFIDENCE
 from phyloc.phy.system import C0, OFDMSystem
 from phyloc.reporting import new_figure, save_figure
 
@@ -164,6 +172,10 @@ def _z(diff, se):
     return np.where(tiny, 0.0, z)
 
 
+#: The normal quantile of a two-sided 95 % interval of a Monte Carlo mean over many links.
+_Z95 = float(stats.norm.ppf(0.5 + CONFIDENCE / 2))
+
+
 def _fmt(x: float) -> str:
     return "never" if not math.isfinite(x) else f"{x:.3g}"
 
@@ -216,11 +228,11 @@ def plot(results: dict, path) -> None:
             ax.errorbar(
                 ser[f"{p}.mc_d0_m"],
                 ser[f"{p}.mc"],
-                yerr=2.0 * np.asarray(ser[f"{p}.mc_se"]),
+                yerr=_Z95 * np.asarray(ser[f"{p}.mc_se"]),
                 fmt="o",
                 ms=3,
                 color=col,
-                label=f"{s}: Monte Carlo (±2 s.e.)",
+                label=f"{s}: Monte Carlo (95 %: ±{_Z95:.2f} s.e.)",
             )
         bx.plot(d, np.asarray(ser[f"{p}.min_bandwidth_hz"]) / 1e6, color=col, label=s)
         scf = np.asarray(ser[f"{p}.scf"])

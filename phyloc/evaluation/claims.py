@@ -33,6 +33,13 @@ A claim with ``each`` holds when every combination holds, differs when one diffe
 undecided otherwise. A ``differs`` claim names in ``explained_by`` the stored run (an ablation,
 a diagnostic) that measures its cause. :func:`check_ledger` recomputes every verdict;
 ``phyloc claims`` prints them, and a test fails when one no longer matches the ledger.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020 (the claims of the first ledger).
+TOML v1.0.0, https://toml.io/en/v1.0.0 (the ledger's format).
 """
 
 from __future__ import annotations

@@ -11,23 +11,34 @@ SNR (received power over noise, as if the power arrived in one path), pooled per
 against the CRB and locates the threshold below which wrong-peak outliers appear (an outlier
 is an error beyond the first null of the autocorrelation, ``c0/B``).
 
-Figures (``results.json``; ``<m>`` a method, ``<s>`` a scenario token):
+Figures (``results.json``; ``<m>`` a method, ``<s>`` a scenario token; † marks a figure pooled
+over the realizations of ``<s>`` — every network size and realization is one unit — which
+comes with its 95 % interval ``<name>.ci_low`` / ``<name>.ci_high`` and its per-realization
+values ``series["<name>.units"]``, :mod:`~phyloc.evaluation.statistics`):
 
-* ``<m>.<s>.rmse_m``: ranging RMSE over all valid links;
-* ``<m>.<s>.rmse_los_m`` / ``rmse_nlos_m``: the same over LOS / NLOS links;
-* ``<m>.<s>.valid_fraction``: fraction of links with a range;
-* ``<m>.<s>.rmse_over_zzb``: ``rmse_m`` over the pooled √ZZB;
-* ``crb.<s>.rmse_m`` / ``zzb.<s>.rmse_m``: pooled √CRB / √ZZB over all links;
-* ``<s>.los_fraction``, ``<s>.n_links``;
+* ``<m>.<s>.rmse_m`` †: ranging RMSE over all valid links;
+* ``<m>.<s>.rmse_los_m`` / ``rmse_nlos_m`` †: the same over LOS / NLOS links;
+* ``<m>.<s>.valid_fraction`` †: fraction of links with a range;
+* ``<m>.<s>.rmse_over_zzb``: ``rmse_m`` over the pooled √ZZB of the same links (its interval:
+  ``<m>_vs_zzb.<s>.rmse_m.ratio``, below);
+* ``<a>_vs_<b>.<s>.rmse_m.ratio`` (with ``.ci_low`` / ``.ci_high``): ``rmse_m`` of method
+  ``<a>`` over that of ``<b>`` (every pair, in the order of ``ranging.methods``), with the
+  interval of the paired bootstrap over the realizations both ran on (below 1 favours ``<a>``);
+* ``<m>_vs_zzb.<s>.rmse_m.ratio`` (with its interval): ``rmse_m`` over the pooled √ZZB of the
+  same links — ``rmse_over_zzb`` up to rounding, with its paired interval;
+* ``crb.<s>.rmse_m`` / ``zzb.<s>.rmse_m``: pooled √CRB / √ZZB over all links (bounds: no
+  interval);
+* ``<s>.los_fraction`` †, ``<s>.n_links``;
 * ``corr.awgn.crb_ratio_<x>db``: RMSE/√CRB of the correlation peak at post-correlation SNR
-  x dB;
+  x dB (one task per SNR: no interval);
 * ``corr.awgn.threshold_snr_db``: lowest swept SNR from which on outliers stay <= 1 %;
 * ``zzb.awgn.threshold_snr_db``: the same SNR as predicted by the ZZB (ZZB <= 1.15 CRB).
 
-Series: ``distance_bin_centers_m``, ``<m>.<s>.rmse_by_distance_m``,
-``crb.<s>.rmse_by_distance_m``, ``zzb.<s>.rmse_by_distance_m``, ``<s>.links_by_distance``,
-``awgn.pc_snr_db``, ``corr.awgn.rmse_over_sqrt_crb``, ``corr.awgn.outlier_fraction``,
-``zzb.awgn.over_crb``.
+Series: ``distance_bin_centers_m``, ``<m>.<s>.rmse_by_distance_m`` (and its 95 % interval per
+bin over the realizations, ``.ci_low`` / ``.ci_high``), ``crb.<s>.rmse_by_distance_m``,
+``zzb.<s>.rmse_by_distance_m``, ``<s>.links_by_distance``, ``awgn.pc_snr_db``,
+``corr.awgn.rmse_over_sqrt_crb``, ``corr.awgn.outlier_fraction``, ``zzb.awgn.over_crb``; the
+``<name>.units`` of every † figure.
 
 References
 ----------
@@ -56,13 +67,14 @@ from phyloc.datasets.simulate import simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.sections import RangingSpec, network_specs, scenario_specs
+from phyloc.evaluation.statistics import Paired, Pooled, interval
 from phyloc.phy import C0, PathSet
 from phyloc.phy.bounds import crb_range, zzb_range
 from phyloc.phy.correlation import correlation_tables
 from phyloc.phy.synthesis import synthesize
 from phyloc.phy.waveform import qpsk_symbols
 from phyloc.ranging import estimate, ranging_variance
-from phyloc.reporting import new_figure, save_figure
+from phyloc.reporting import new_figure, save_figure, with_interval
 
 
 @dataclass(frozen=True)
@@ -151,6 +163,40 @@ def _binned_sqrt_mean(x, b, mask, n_bins):
     return out
 
 
+def _binned_interval(sq_per_unit, bin_per_unit, mask_per_unit, n_bins, *, seed, name):
+    """Per distance bin, the 95 % interval of the RMSE pooled over units (each unit's squared
+    errors ``sq``, bin indices and mask): two ``[n_bins]`` arrays, NaN where a bin has too few
+    units (:func:`~phyloc.evaluation.statistics.interval`)."""
+    num = np.array(
+        [
+            np.bincount(b[k], weights=x[k], minlength=n_bins)
+            for x, b, k in zip(sq_per_unit, bin_per_unit, mask_per_unit, strict=True)
+        ]
+    ).reshape(-1, n_bins)
+    den = np.array(
+        [
+            np.bincount(b[k], minlength=n_bins)
+            for b, k in zip(bin_per_unit, mask_per_unit, strict=True)
+        ]
+    ).reshape(-1, n_bins)
+    lo, hi = np.full(n_bins, np.nan), np.full(n_bins, np.nan)
+    for j in np.flatnonzero(den.sum(axis=0) > 0):
+        lo[j], hi[j] = interval(
+            Pooled(num[:, j], den[:, j], "rmse"), seed=seed, name=f"{name}[{j}]"
+        )
+    return lo, hi
+
+
+def _comparisons(figures, methods, tok):
+    """Paired ratios of ``rmse_m`` over the same realizations for every pair of methods
+    (``<a>_vs_<b>``, in the order of ``methods``; below 1 favours ``<a>``)."""
+    for i, a in enumerate(methods):
+        for bm in methods[i + 1 :]:
+            figures[f"{a}_vs_{bm}.{tok}.rmse_m"] = Paired(
+                figures[f"{a}.{tok}.rmse_m"], figures[f"{bm}.{tok}.rmse_m"]
+            )
+
+
 def _awgn_figures(results, exp, system, S_ref, rspec, figures, series):
     pc = np.asarray(exp.awgn_snr_db)
     ratio, outl = [], []
@@ -196,14 +242,16 @@ def plot(results: dict, path) -> None:
     x = np.asarray(ser["distance_bin_centers_m"])
     styles = {"corr": "o-", "first_peak": "v-", "sage": "s-", "sage_los": "d--"}
     for ax, tok in zip(axes, tokens, strict=False):
-        for m in meta["methods"]:
+        for i, m in enumerate(meta["methods"]):
             label = f"{m} (oracle)" if m == "sage_los" else m
-            ax.semilogy(x, ser[f"{m}.{tok}.rmse_by_distance_m"], styles.get(m, "x-"), label=label)
+            name = f"{m}.{tok}.rmse_by_distance_m"
+            ax.semilogy(x, ser[name], styles.get(m, "x-"), color=f"C{i}", label=label)
+            _error_bars(ax, x, ser, name, f"C{i}")
         ax.semilogy(x, ser[f"crb.{tok}.rmse_by_distance_m"], "k-", lw=1, label="√CRB")
         ax.semilogy(x, ser[f"zzb.{tok}.rmse_by_distance_m"], "k:", lw=1.5, label="√ZZB")
         ax.set_title(
             f"{tok}: LOS {100 * fig_d[f'{tok}.los_fraction']:.1f} %, "
-            f"{int(fig_d[f'{tok}.n_links'])} links"
+            f"{int(fig_d[f'{tok}.n_links'])} links (bars: 95 % intervals)"
         )
         ax.set_xlabel("distance [m]")
         ax.set_ylabel("ranging RMSE [m]")
@@ -233,10 +281,38 @@ def plot(results: dict, path) -> None:
     save_figure(fig, path)
 
 
+def _error_bars(ax, x, series: dict, name: str, color) -> None:
+    """Error bars of the per-bin 95 % interval of the series ``name`` (bins without one —
+    fewer than two realizations with links there — get none; a band would bridge them)."""
+    lo, hi = series.get(name + ".ci_low"), series.get(name + ".ci_high")
+    if lo is None or hi is None:
+        return
+    y = np.asarray(series[name], dtype=float)
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    ok = np.isfinite(lo) & np.isfinite(hi) & np.isfinite(y)
+    if ok.any():
+        err = np.clip([y[ok] - lo[ok], hi[ok] - y[ok]], 0.0, None)
+        ax.errorbar(np.asarray(x)[ok], y[ok], yerr=err, fmt="none", ecolor=color, capsize=2, lw=1)
+
+
 def summary_lines(results: dict):
-    """Extra printed lines: the AWGN check."""
-    f = results["figures"]
-    out = []
+    """Extra printed lines: what the brackets are, the paired RMSE ratios of the methods and
+    the AWGN check."""
+    f, meta = results["figures"], results["meta"]
+    out = [
+        "RMSE, valid fraction [95 % interval over realizations]; RMSE/√ZZB on the links each "
+        "method ranged [paired 95 % interval]"
+    ]
+    methods = meta.get("methods", [])
+    for tok in meta.get("scenarios", []):
+        pairs = [
+            f"{a}/{b} {with_interval(f, key)}"
+            for i, a in enumerate(methods)
+            for b in methods[i + 1 :]
+            if (key := f"{a}_vs_{b}.{tok}.rmse_m.ratio") in f
+        ]
+        if pairs:
+            out.append(f"{tok}: RMSE ratios (paired over realizations): " + ", ".join(pairs))
     if "corr.awgn.threshold_snr_db" in f:
         ratios = ", ".join(
             f"{db} dB: {f[k]:.3f}"
@@ -252,21 +328,23 @@ def summary_lines(results: dict):
 
 
 def summary_rows(results: dict):
-    """Rows (scenario, method, RMSE, LOS, NLOS, valid, RMSE/√ZZB) for the printed table."""
+    """Rows (scenario, method, RMSE, LOS, NLOS, valid, RMSE/√ZZB) for the printed table, each
+    Monte Carlo figure with its 95 % interval when the run has one."""
     f, meta = results["figures"], results["meta"]
     rows = []
     for tok in meta["scenarios"]:
         for m in meta["methods"]:
             name = f"{m} (oracle)" if m == "sage_los" else m
+            ratio = f"{m}_vs_zzb.{tok}.rmse_m.ratio"
             rows.append(
                 (
                     tok,
                     name,
-                    f[f"{m}.{tok}.rmse_m"],
-                    f[f"{m}.{tok}.rmse_los_m"],
-                    f[f"{m}.{tok}.rmse_nlos_m"],
-                    f[f"{m}.{tok}.valid_fraction"],
-                    f[f"{m}.{tok}.rmse_over_zzb"],
+                    with_interval(f, f"{m}.{tok}.rmse_m"),
+                    with_interval(f, f"{m}.{tok}.rmse_los_m"),
+                    with_interval(f, f"{m}.{tok}.rmse_nlos_m"),
+                    with_interval(f, f"{m}.{tok}.valid_fraction"),
+                    with_interval(f, ratio) if ratio in f else f[f"{m}.{tok}.rmse_over_zzb"],
                 )
             )
         rows.append((tok, "√CRB", f[f"crb.{tok}.rmse_m"], None, None, None, None))
@@ -327,8 +405,9 @@ class RangingExperiment(Experiment):
             )
             b = np.digitize(d, edges) - 1
             inb = (b >= 0) & (b < centers.size)
+            cuts = np.cumsum([p["distance_m"].size for p in parts])[:-1]  # link ranges per unit
             figures[f"{tok}.n_links"] = int(d.size)
-            figures[f"{tok}.los_fraction"] = float(los.mean())
+            figures[f"{tok}.los_fraction"] = Pooled.fraction([p["los"] for p in parts])
             figures[f"crb.{tok}.rmse_m"] = float(math.sqrt(np.mean(crb)))
             figures[f"zzb.{tok}.rmse_m"] = float(math.sqrt(np.mean(zzb)))
             series[f"{tok}.links_by_distance"] = np.bincount(b[inb], minlength=centers.size)
@@ -338,18 +417,39 @@ class RangingExperiment(Experiment):
                 rng_est = np.concatenate([p[f"{m}.range_m"] for p in parts])
                 valid = np.concatenate([p[f"{m}.valid"] for p in parts])
                 err = rng_est - d
-                figures[f"{m}.{tok}.rmse_m"] = _rmse(err[valid])
-                figures[f"{m}.{tok}.rmse_los_m"] = _rmse(err[valid & los])
-                figures[f"{m}.{tok}.rmse_nlos_m"] = _rmse(err[valid & ~los])
-                figures[f"{m}.{tok}.valid_fraction"] = float(valid.mean())
+                # per realization (unit): its valid links' errors, LOS flags and ZZB
+                u_err, u_valid, u_los = (np.split(x, cuts) for x in (err, valid, los))
+                u_zzb = np.split(zzb, cuts)
+                ok = list(zip(u_err, u_valid, u_los, strict=True))
+                figures[f"{m}.{tok}.rmse_m"] = Pooled.rmse([e[v] for e, v, _ in ok])
+                figures[f"{m}.{tok}.rmse_los_m"] = Pooled.rmse([e[v & s] for e, v, s in ok])
+                figures[f"{m}.{tok}.rmse_nlos_m"] = Pooled.rmse([e[v & ~s] for e, v, s in ok])
+                figures[f"{m}.{tok}.valid_fraction"] = Pooled.fraction(u_valid)
                 figures[f"{m}.{tok}.rmse_over_zzb"] = (
-                    figures[f"{m}.{tok}.rmse_m"] / math.sqrt(np.mean(zzb[valid]))
+                    _rmse(err[valid]) / math.sqrt(np.mean(zzb[valid]))
                     if valid.any()
                     else float("nan")
                 )
-                series[f"{m}.{tok}.rmse_by_distance_m"] = _binned_sqrt_mean(
-                    err**2, b, inb & valid, centers.size
+                # √ZZB pooled over the links m ranged, per unit: the paired ratio's denominator
+                zzb_m = Pooled(
+                    [float(np.sum(z[v])) for z, v in zip(u_zzb, u_valid, strict=True)],
+                    [int(v.sum()) for v in u_valid],
+                    "rmse",
                 )
+                figures[f"{m}_vs_zzb.{tok}.rmse_m"] = Paired(figures[f"{m}.{tok}.rmse_m"], zzb_m)
+                name = f"{m}.{tok}.rmse_by_distance_m"
+                series[name] = _binned_sqrt_mean(err**2, b, inb & valid, centers.size)
+                u_b, u_inb = np.split(b, cuts), np.split(inb, cuts)
+                lo, hi = _binned_interval(
+                    [e**2 for e in u_err],
+                    u_b,
+                    [i & v for i, v in zip(u_inb, u_valid, strict=True)],
+                    centers.size,
+                    seed=ctx.seed,
+                    name=name,
+                )
+                series[name + ".ci_low"], series[name + ".ci_high"] = lo, hi
+            _comparisons(figures, rspec.methods, tok)
         if awgn_results:
             _awgn_figures(awgn_results, exp, system, S_ref, rspec, figures, series)
         return figures, series
