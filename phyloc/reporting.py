@@ -20,6 +20,7 @@ import json
 import math
 import os
 import platform
+import re
 import tempfile
 from pathlib import Path
 
@@ -104,6 +105,31 @@ def file_mode() -> int:
     return 0o666 & ~mask
 
 
+#: A JSON list of numbers (no nested list or object) as ``json.dumps(indent=2)`` writes it.
+_FLAT_LIST = re.compile(r"\[(?:\s*(?:-?(?:\d|Infinity|NaN)[^,\]\s]*|null|true|false),?)+\s*\]")
+
+
+def dumps_results(doc: dict) -> str:
+    """``doc`` as indented JSON with every list of numbers on one line (a series of per-unit
+    values is one line, not one line per number); ``json.loads`` gives ``doc`` back.
+
+    >>> print(dumps_results({"a": [1, 2.5, None], "b": {"c": [[0, 1], [2, 3]]}}))
+    {
+      "a": [1, 2.5, null],
+      "b": {
+        "c": [
+          [0, 1],
+          [2, 3]
+        ]
+      }
+    }
+    """
+    text = json.dumps(doc, indent=2, sort_keys=False)
+    return _FLAT_LIST.sub(
+        lambda m: "[" + ", ".join(m.group(0)[1:-1].split()).replace(",,", ",") + "]", text
+    )
+
+
 def write_json(path, figures: dict, meta: dict, series: dict | None = None, *, force=False):
     """Write the results object to ``path`` atomically; refuse to replace a file unless
     ``force``. Returns the path."""
@@ -119,7 +145,7 @@ def write_json(path, figures: dict, meta: dict, series: dict | None = None, *, f
     try:
         os.fchmod(fd, file_mode())  # mkstemp's 0600 → what open() would have given
         with os.fdopen(fd, "w") as fh:
-            json.dump(doc, fh, indent=2, sort_keys=False)
+            fh.write(dumps_results(doc))
             fh.write("\n")
         os.replace(tmp, path)
     except BaseException:

@@ -295,7 +295,13 @@ def _tiny_recipe(tmp_path, extra=""):
 
 
 def _non_timing(fig):
-    return {k: v for k, v in fig.items() if not k.endswith("decision_s")}
+    """The figures that are not wall times; NaN (an interval a ratio's resamples leave
+    undefined) as a string, so that two runs compare equal."""
+    return {
+        k: "nan" if isinstance(v, float) and math.isnan(v) else v
+        for k, v in fig.items()
+        if not k.endswith("decision_s")
+    }
 
 
 def test_control_experiment_same_numbers_on_one_and_two_workers(tmp_path):
@@ -369,3 +375,116 @@ def test_the_earlier_estimator_form_shows_the_current_one(tmp_path):
     )
     with pytest.raises(ValidationError, match=r"localization\.method .*estimator = "):
         ce.CONTROL.prepare(load_recipe(path))
+
+
+# -- 95 % intervals over trials -------------------------------------------------------------------
+def _from_units(u) -> float:
+    """Brute force: the pooled figure from its stored per-unit numerators and denominators."""
+    return float(np.sum(np.asarray(u["num"], float)) / np.sum(np.asarray(u["den"], float)))
+
+
+def test_control_figures_carry_intervals_over_trials(tmp_path):
+    """6 trials in 2 tasks: every pooled figure has a finite interval around it and one value
+    per trial (not per task), and is the pooled value of those; the fractions are the
+    percentages / 100; a paired ratio is the ratio of its two figures; the table shows the
+    intervals."""
+    res = ce.CONTROL.run(_tiny_recipe(tmp_path), progress=False)
+    f, ser, meta = res["figures"], res["series"], res["meta"]
+    names = [k.removesuffix(".units") for k in ser if k.endswith(".units")]
+    K = meta["steps"]
+    for p in meta["policies"]:
+        want = {f"{p}.track_loss_fraction", f"{p}.diverged_fraction", f"{p}.k{K}.log10_mse_mean"}
+        want |= {f"{p}.late_log10_mse_mean", f"{p}.track_loss_fraction_20m"}
+        assert want <= set(names), want - set(names)
+        assert f[f"{p}.track_loss_fraction"] == pytest.approx(f[f"{p}.track_loss_pct"] / 100)
+        assert f[f"{p}.diverged_fraction"] == pytest.approx(f[f"{p}.diverged_pct"] / 100)
+        assert f"{p}.decision_s.ci_low" not in f  # wall times are plain
+    for n in names:
+        lo, x, hi = f[n + ".ci_low"], f[n], f[n + ".ci_high"]
+        assert math.isfinite(lo) and math.isfinite(hi), n
+        slack = 1e-12 * abs(x)  # a point value kept as computed may differ in the last bit
+        assert lo - slack <= x <= hi + slack, (n, lo, x, hi)
+        u = ser[n + ".units"]
+        assert len(u["num"]) == len(u["den"]) == meta["trials"] == 6, n
+        assert x == pytest.approx(_from_units(u), rel=1e-12, abs=1e-15), n
+    ratios = [k for k in f if k.endswith(".track_loss_fraction.ratio")]
+    pairs = ce.comparisons(ce.CONTROL.prepare(_tiny_recipe(tmp_path)).policies)
+    assert ("fim_rh", "static") in pairs and ("fim_rh", "fim_myopic") in pairs
+    assert ("static", "fim_rh") not in pairs and ("random", "static") not in pairs
+    for a, b in pairs:
+        key = f"{a}_vs_{b}.track_loss_fraction.ratio"
+        if f[f"{b}.track_loss_fraction"] == 0:
+            assert key not in f
+        else:
+            assert f[key] == f[f"{a}.track_loss_fraction"] / f[f"{b}.track_loss_fraction"]
+    assert ratios
+    rows = ce.summary_rows(res)
+    x, lo, hi = (100 * f[f"static.track_loss_fraction{s}"] for s in ("", ".ci_low", ".ci_high"))
+    assert rows[0][1] == f"{x:.3g} [{lo:.3g}, {hi:.3g}]"
+    assert rows[0][3].startswith(f"{f[f'static.k{K}.log10_mse_mean']:.3g} [")
+    assert len(rows[0]) == len(ce.CONTROL.headers)
+
+
+def _fake_control(plan, n_trials, K, A, block, seed=2):
+    """Task results of ``n_trials`` trials in blocks of ``block`` (random squared errors,
+    some diverged)."""
+    rng = np.random.default_rng(seed)
+    err2 = {p: rng.lognormal(1.0, 2.0, (n_trials, K, A)) for p in plan}
+    for p in plan:
+        err2[p][rng.random(n_trials) < 0.2, -3:, 0] = np.inf  # diverged trials
+    out = []
+    for s in range(0, n_trials, block):
+        t = range(s, min(s + block, n_trials))
+        out.append(
+            (
+                {p: {"err2": [err2[p][i] for i in t], "decision_s": [1e-3] * len(t)} for p in plan},
+                None,
+            )
+        )
+    return out, err2
+
+
+def test_control_point_values_are_those_of_all_trials_at_once_and_units_are_trials():
+    """37 trials: the log-MSE means are, bit for bit, the mean over trials of log10 of the
+    mean over agents (diverged errors as DIVERGED_M2), with one unit per trial; grouping the
+    trials into tasks of 5 or 1 changes neither the figures nor their units."""
+    from types import SimpleNamespace
+
+    from phyloc.evaluation.statistics import Pooled, resolve
+
+    exp = ce.ControlExperimentSpec(trials=37, policies=("static", "random", "fim_rh"))
+    plan, K, A = exp.plan(), 12, 3
+    scenario = SimpleNamespace(steps=K)
+    res5, err2 = _fake_control(plan, 37, K, A, 5)
+    res1, _ = _fake_control(plan, 37, K, A, 1)
+    f5, _ = ce._aggregate(res5, exp, plan, scenario)
+    f1, _ = ce._aggregate(res1, exp, plan, scenario)
+    for p in plan:
+        e = err2[p]
+        log_mse = np.log10(np.where(np.isfinite(e), e, ce.DIVERGED_M2).mean(axis=2))
+        by_step = log_mse.mean(axis=0)  # the established figure: sequential over trials
+        fig = f5[f"{p}.k{K}.log10_mse_mean"]
+        assert fig.value == by_step[-1]
+        np.testing.assert_array_equal(fig.num, log_mse[:, -1])
+        assert fig.n_units == 37 and np.all(fig.den == 1)
+        assert f5[f"{p}.late_log10_mse_mean"].value == by_step[-10:].mean()
+        lost = ~(e[:, -1, :] <= 25.0)  # track_loss_m = 5 m
+        loss = f5[f"{p}.track_loss_fraction"]
+        assert loss.value == lost.sum() / lost.size and loss.n_units == 37
+        np.testing.assert_array_equal(loss.num, lost.sum(axis=1))
+        assert f5[f"{p}.track_loss_pct"] == 100.0 * lost.sum() / lost.size
+        div = ~np.all(np.isfinite(e), axis=(1, 2))
+        assert f5[f"{p}.diverged_fraction"].value == div.mean()
+    for k, x in f5.items():
+        y = f1[k]
+        if isinstance(x, Pooled):
+            assert x.value == y.value and x.kind == y.kind, k
+            np.testing.assert_array_equal([x.num, x.den], [y.num, y.den], err_msg=k)
+        elif not k.endswith("decision_s") and not hasattr(x, "a"):
+            assert x == y, k
+    r5, _ = resolve(f5, {}, seed=4)
+    r1, _ = resolve(f1, {}, seed=4)
+    assert _non_timing(r5) == _non_timing(r1)
+    assert r5["fim_rh_vs_static.track_loss_fraction.ratio"] == (
+        r5["fim_rh.track_loss_fraction"] / r5["static.track_loss_fraction"]
+    )

@@ -84,6 +84,71 @@ def tiny():
     return dt.DIRECT_TRACKING.run(load_recipe(TINY), progress=False)
 
 
+@pytest.fixture(scope="module")
+def two_realizations():
+    """Run b alone (slow and fast snapshots), two realizations."""
+    head = TINY[: TINY.index("[experiment.runs.a.network]")]
+    tail = TINY[TINY.index("[experiment.runs.b.network]") :]
+    recipe = head.replace("particles_snapshot = 2", "particles_snapshot = 2\nrealizations = 2")
+    return dt.DIRECT_TRACKING.run(load_recipe(recipe + tail), progress=False)
+
+
+def test_pooled_figures_have_intervals_and_one_value_per_realization(two_realizations, tmp_path):
+    """Every figure pooled over realizations: a finite 95 % interval around it, one numerator
+    and denominator per realization, the figure recomputed from them by hand. Per
+    realization, the slow and fast segments' squared per-snapshot RMSEs add up to its
+    squared errors over every snapshot (equal pairs per snapshot), and the outlier share
+    counts whole errors."""
+    res = two_realizations
+    f, ser = res["figures"], res["series"]
+    T = res["meta"]["n_snapshots"]["b"]
+    names = [n.removesuffix(".units") for n in ser if n.endswith(".units")]
+    what = ("rmse_m", "rmse_slow_m", "rmse_fast_m", "errors_over_2m_pct")
+    assert sorted(names) == sorted(f"{m}.b.{w}" for m in METHODS for w in what)
+    for n in names:
+        u = ser[n + ".units"]
+        num, den = [float(x) for x in u["num"]], [float(x) for x in u["den"]]
+        assert len(num) == len(den) == 2, n
+        ref = sum(num) / sum(den)
+        assert f[n] == pytest.approx(math.sqrt(ref) if u["kind"] == "rmse" else ref, rel=1e-12)
+        lo, hi = f[n + ".ci_low"], f[n + ".ci_high"]
+        assert math.isfinite(lo) and math.isfinite(hi), n
+        assert lo <= f[n] * (1 + 1e-12) and f[n] <= hi * (1 + 1e-12), n
+    for m in METHODS:
+        b = f"{m}.b"
+        full, slow, fast = (ser[f"{b}.{w}.units"] for w in what[:3])
+        np.testing.assert_array_equal(np.add(slow["den"], fast["den"]), [T, T])
+        pairs = np.asarray(full["den"]) / T  # framework pairs per snapshot
+        np.testing.assert_allclose(
+            pairs * (np.asarray(slow["num"]) + np.asarray(fast["num"])), full["num"], rtol=1e-9
+        )
+        out = ser[f"{b}.errors_over_2m_pct.units"]
+        assert out["kind"] == "mean" and list(out["den"]) == list(full["den"])
+        assert all(x % 100 == 0 for x in out["num"])  # 100 per error above 2 m
+    dt.plot(res, tmp_path / "r.png")
+    assert (tmp_path / "r.png").stat().st_size > 10_000
+
+
+def test_first_method_over_the_others_on_the_same_realizations(two_realizations):
+    """``dipnet_vs_<m>.b.*.ratio``: the ratio of the two written figures, a paired interval
+    around it, for the RMSE over all snapshots and over each segment; the table shows the
+    intervals and a line the ratios."""
+    f = two_realizations["figures"]
+    ratios = sorted(n for n in f if n.endswith(".ratio"))
+    what = ("rmse_m", "rmse_slow_m", "rmse_fast_m")
+    assert ratios == sorted(f"dipnet_vs_{m}.b.{w}.ratio" for m in METHODS[1:] for w in what)
+    for m in METHODS[1:]:
+        for w in what:
+            r = f"dipnet_vs_{m}.b.{w}.ratio"
+            assert f[r] == f[f"dipnet.b.{w}"] / f[f"{m}.b.{w}"]
+            lo, hi = f[r + ".ci_low"], f[r + ".ci_high"]
+            assert math.isfinite(lo) and lo <= f[r] * (1 + 1e-12) and f[r] <= hi * (1 + 1e-12)
+    rows = dt.summary_rows(two_realizations)
+    assert all(isinstance(c, str) and "[" in c for c in rows[0][4:7])
+    lines = dt.summary_lines(two_realizations)
+    assert any(line.startswith("b: RMSE dipnet / other") for line in lines)
+
+
 def test_every_documented_figure_and_series(tiny):
     f, ser, meta = tiny["figures"], tiny["series"], tiny["meta"]
     assert meta["runs"] == ["a", "b"] and meta["methods"] == list(METHODS)
@@ -124,6 +189,8 @@ def test_fast_segment_is_where_the_rover_exceeds_the_speed(tiny):
     f = tiny["figures"]
     assert f["a.fast_snapshots"] == 0  # 1 m/s throughout
     assert math.isnan(f["dipnet.a.rmse_fast_m"])
+    assert "dipnet_vs_corr2.a.rmse_fast_m.ratio" not in f  # no fast snapshot: no comparison
+    assert math.isnan(f["dipnet.a.rmse_m.ci_low"])  # one realization: no interval
     # run b: 1 m/s on a 1.5 m leg, then 3 m/s: snapshots at 2 s and 3 s are on the fast leg
     assert f["b.fast_snapshots"] == 2
     for m in METHODS:

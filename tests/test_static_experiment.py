@@ -13,6 +13,7 @@ from phyloc.errors import ValidationError
 from phyloc.evaluation import static_experiment as se
 from phyloc.evaluation import static_figures
 from phyloc.evaluation.experiment import experiment_from_dict
+from phyloc.evaluation.statistics import Pooled
 from phyloc.localization.static.ellipses import EllipseRegion
 
 DATASETS = Path(__file__).resolve().parents[1] / "datasets"
@@ -189,9 +190,19 @@ def test_same_results_with_one_and_two_workers(tiny):
     assert names == [n for n in two["figures"] if not static_figures.is_timing(n)]
     assert "poa_nbp.mean_error_m" in names and "poa.time_per_node_s" not in names
     for n in names:
-        assert tiny["figures"][n] == two["figures"][n], n
+        assert _same(tiny["figures"][n], two["figures"][n]), n
     for n, x in tiny["series"].items():
-        np.testing.assert_array_equal(x, two["series"][n], err_msg=n)
+        y = two["series"][n]
+        if n.endswith(".units"):  # {"kind", "num", "den"}: the per-topology values
+            assert x["kind"] == y["kind"], n
+            x, y = np.array([x["num"], x["den"]]), np.array([y["num"], y["den"]])
+        np.testing.assert_array_equal(x, y, err_msg=n)
+
+
+def _same(x, y) -> bool:
+    """Equal, or both NaN (an interval that a single topology, or a ratio whose resamples
+    divide by 0, leaves undefined)."""
+    return x == y or (math.isnan(x) and math.isnan(y))
 
 
 def test_sample_sweep_topologies_limits_the_sweep_only(tiny):
@@ -212,8 +223,9 @@ def test_sample_sweep_topologies_limits_the_sweep_only(tiny):
         if static_figures.is_timing(n) or n.endswith("topologies"):
             continue
         # N_S = 40 is also the comparison's: its overhead figures come from the comparison
-        from_sweep = n in swept and not (n.startswith("poa_nbp.ns40.") and n.endswith(_OVERHEAD))
-        assert f[n] == (one if from_sweep else tiny)["figures"][n], n
+        base = n.removesuffix(".ci_low").removesuffix(".ci_high")  # the figure of an interval
+        from_sweep = n in swept and not (n.startswith("poa_nbp.ns40.") and base.endswith(_OVERHEAD))
+        assert _same(f[n], (one if from_sweep else tiny)["figures"][n]), n
     assert limited["meta"]["sample_sweep_topologies"] == 1
     assert tiny["meta"]["sample_sweep_topologies"] == 2
 
@@ -275,3 +287,129 @@ def test_cli_evaluate_static(tmp_path, capsys):
     assert (out / "results.json").exists() and (out / "tiny_static.png").stat().st_size > 10_000
     # nothing already written is overwritten
     assert main(["evaluate", str(path), "--out", str(out), "--no-progress"]) != 0
+
+
+# -- 95 % intervals over topologies -------------------------------------------------------------
+def _pooled(res):
+    """Names of the figures the run resolved from per-topology values (their ``.units``)."""
+    return [k.removesuffix(".units") for k in res["series"] if k.endswith(".units")]
+
+
+def _from_units(u) -> float:
+    """Brute force: the pooled figure from its stored per-unit numerators and denominators."""
+    num, den = np.sum(np.asarray(u["num"], float)), np.sum(np.asarray(u["den"], float))
+    return math.sqrt(num / den) if u["kind"] == "rmse" else num / den
+
+
+def test_pooled_figures_carry_intervals_over_the_topologies(tiny):
+    """Every figure pooled over the 2 topologies has a finite interval around it, one value
+    per topology, and is the pooled value of those; the table shows the intervals; a paired
+    ratio is the ratio of its two figures, present unless the second is 0."""
+    f, ser, meta = tiny["figures"], tiny["series"], tiny["meta"]
+    names = _pooled(tiny)
+    expected = ["poa.containment_fraction", "poa.dropped_fraction", "ellipse.area_it3_m2"]
+    expected += [f"{m}.{q}" for m in meta["methods"] for q in ("mean_error_m", "rmse_m")]
+    expected += [f"{m}.outage_1m" for m in meta["methods"]]
+    expected += ["poa.ne4.area_it1_m2", "poa_nbp.ns20.mean_error_m", "poa_nbp.ns40.outage_1m"]
+    assert not set(expected) - set(names), set(expected) - set(names)
+    for n in names:
+        lo, x, hi = f[n + ".ci_low"], f[n], f[n + ".ci_high"]
+        assert math.isfinite(lo) and math.isfinite(hi), n
+        slack = 1e-12 * abs(x)  # a point value kept as computed may differ in the last bit
+        assert lo - slack <= x <= hi + slack, (n, lo, x, hi)
+        u = ser[n + ".units"]
+        assert len(u["num"]) == len(u["den"]) == meta["topologies"] == 2, n
+        assert x == pytest.approx(_from_units(u), rel=1e-12, abs=1e-300), n
+    for m in meta["methods"]:
+        u = ser[f"{m}.outage_1m.units"]
+        assert list(u["den"]) == [30, 30] and all(float(k).is_integer() for k in u["num"])
+        assert not any(k.startswith(f"{m}.convergence_iteration.") for k in f)  # plain
+    assert "poa.time_per_node_s.ci_low" not in f  # wall times are plain
+    ratios = 0
+    for m in meta["methods"]:
+        for q in ("mean_error_m", "rmse_m", "outage_1m"):
+            key = f"poa_nbp_vs_{m}.{q}.ratio"
+            if m == "poa_nbp" or f[f"{m}.{q}"] == 0:
+                assert key not in f
+                continue
+            assert f[key] == f[f"poa_nbp.{q}"] / f[f"{m}.{q}"], key
+            ratios += 1
+    assert ratios >= 14
+    row = se.summary_rows(tiny)[1]
+    assert row[0] == "POA-NBP" and f"{f['poa_nbp.mean_error_m']:.3g} [" in row[1]
+    assert any("over the other method's" in line for line in se.summary_lines(tiny))
+
+
+def _fake_static(exp, n_topo, seed=3):
+    """Task results of ``n_topo`` topologies (random numbers of the task's shapes)."""
+    rng = np.random.default_rng(seed)
+    n, out = exp.n_agents, []
+    for t in range(n_topo):
+        r = {}
+        for ne in exp.n_edges:
+            area = rng.gamma(2.0, 50.0, (exp.poa_iterations, n))
+            area[:, rng.random(n) < 0.05] = np.inf  # unbounded agents: left out of the mean
+            r[f"poa|{ne}|area"] = area
+            r[f"poa|{ne}|contained"] = rng.random(n) < 0.97
+            r[f"poa|{ne}|ops"] = float(rng.integers(100, 1000))
+            r[f"poa|{ne}|floats"] = float(rng.uniform(6.0, 20.0))
+        r["ellipse|area"] = rng.gamma(2.0, 60.0, (exp.poa_iterations, n))
+        r["poa|contained"] = rng.random(n) < 0.97
+        r["poa|acceptance"] = rng.uniform(0.3, 0.9, n)
+        r["poa|time_per_node_s"] = 1e-4
+        r["poa|dropped"] = (int(rng.integers(0, 5)), 300)
+        over = {"floats_per_link_iteration": 80.0, "support_floats_per_link_iteration": np.nan}
+        for m in exp.methods:
+            r[f"{m}|err"] = rng.exponential(1.0, (exp.n_iterations, n))
+            r[f"{m}|time"], r[f"{m}|t_support"] = 1e-3, 0.0
+            r[f"{m}|overhead"] = {**over, "operations_per_node": float(rng.integers(1, 9) * 1e3)}
+        for m in exp.sample_methods if t < exp.sweep_topologies else ():
+            for ns in exp.sample_sweep:
+                r[f"{m}|ns{ns}|err"] = rng.exponential(1.0, n)
+                r[f"{m}|ns{ns}|time"] = 1e-3
+                r[f"{m}|ns{ns}|overhead"] = r[f"{m}|overhead"]
+        out.append(r)
+    return out
+
+
+def test_pooled_point_values_are_those_of_all_values_at_once():
+    """Many agents in 3 topologies (the pooled sums then differ from one sum over all values
+    in the last bits): every point value is still, bit for bit, the figure computed from all
+    the values at once, and its units are the topologies' own sums and counts."""
+    exp = se.StaticExperimentSpec(
+        topologies=3,
+        n_agents=700,
+        n_edges=(4,),
+        poa_iterations=2,
+        methods=("poa_nbp", "nbp_min_entropy", "wls"),
+        n_iterations=3,
+        n_samples=40,
+        sample_sweep=(20, 40),
+        sample_methods=("poa_nbp", "nbp_min_entropy"),
+        sample_sweep_topologies=2,
+        outage_thresholds_m=(1.0, 2.0),
+    )
+    res = _fake_static(exp, 3)
+    f, _ = se._aggregate(res, exp)
+    for m in exp.methods:
+        final = np.concatenate([r[f"{m}|err"][-1] for r in res])
+        assert f[f"{m}.mean_error_m"].value == final.mean()
+        assert f[f"{m}.rmse_m"].value == math.sqrt(np.mean(final**2))
+        assert f[f"{m}.outage_2m"].value == np.mean(final > 2.0)
+        p = f[f"{m}.mean_error_m"]
+        np.testing.assert_array_equal(p.num, [np.sum(r[f"{m}|err"][-1]) for r in res])
+        np.testing.assert_array_equal(p.den, [700, 700, 700])
+        assert p.value == pytest.approx(p.num.sum() / p.den.sum(), rel=1e-13)
+    area = np.concatenate([r["poa|4|area"][1] for r in res])
+    assert f["poa.ne4.area_it2_m2"].value == area[np.isfinite(area)].mean()
+    assert f["poa.ne4.area_it2_m2"].den.sum() == np.isfinite(area).sum()
+    cont = np.concatenate([r["poa|contained"] for r in res])
+    assert f["poa.containment_fraction"].value == cont.mean()
+    assert f["poa.dropped_fraction"].value == sum(r["poa|dropped"][0] for r in res) / 900
+    sweep = np.concatenate([r["nbp_min_entropy|ns20|err"] for r in res[:2]])
+    assert f["nbp_min_entropy.ns20.mean_error_m"].value == sweep.mean()
+    assert f["nbp_min_entropy.ns20.mean_error_m"].n_units == 2
+    r = f["poa_nbp_vs_wls.rmse_m"]
+    assert r.value == f["poa_nbp.rmse_m"].value / f["wls.rmse_m"].value
+    assert f["poa_nbp_vs_nbp_min_entropy.ns40.outage_1m"].a is f["poa_nbp.ns40.outage_1m"]
+    assert not isinstance(f["poa_nbp.convergence_iteration"], Pooled)

@@ -45,6 +45,79 @@ def fast_s1():
     return te.TRACKING.run(recipe, fast=True, progress=False)
 
 
+@pytest.fixture(scope="module")
+def tiny():
+    return te.TRACKING.run(load_recipe(TINY), progress=False)
+
+
+def _pooled(res) -> list:
+    """The figures a run declared pooled over runs (those with per-unit values)."""
+    return [n.removesuffix(".units") for n in res["series"] if n.endswith(".units")]
+
+
+def test_pooled_figures_have_intervals_and_one_value_per_run(tiny):
+    """Every figure pooled over runs: a finite 95 % interval around it (2 runs), one numerator
+    and denominator per run, the figure recomputed from them by hand; the denominators are
+    the errors each run contributes (agents at a step, agents x steps over the trajectory),
+    and the RMSE over the trajectory is the RMS of the per-step RMSE series."""
+    f, ser, meta = tiny["figures"], tiny["series"], tiny["meta"]
+    runs, K, n_agents = meta["runs"], meta["n_steps"], 3
+    names = _pooled(tiny)
+    expected = []
+    for m in meta["methods"]:
+        expected.append(f"{m}.s1.rmse_p_all_m")
+        for k in meta["report_steps"]:
+            expected += [f"{m}.s1.k{k}.rmse_{q}" for q in ("p_m", "v_m_s", "a_m_s2")]
+        for k in meta["outage_steps"]:
+            expected += [f"{m}.s1.k{k}.outage_{x}" for x in ("0p1m", "0p3m", "1m")]
+    assert sorted(names) == sorted(expected)
+    for n in names:
+        u = ser[n + ".units"]
+        num, den = list(map(float, u["num"])), list(map(float, u["den"]))
+        assert len(num) == len(den) == runs, n
+        total = 0.0
+        for x in num:
+            total += x
+        ref = total / sum(den)
+        ref = math.sqrt(ref) if u["kind"] == "rmse" else ref
+        assert f[n] == pytest.approx(ref, rel=1e-12), n
+        lo, hi = f[n + ".ci_low"], f[n + ".ci_high"]
+        assert math.isfinite(lo) and math.isfinite(hi), n
+        assert lo <= f[n] * (1 + 1e-12) and f[n] <= hi * (1 + 1e-12), n
+        if ".outage_" in n:
+            assert u["kind"] == "fraction" and den == [n_agents] * runs
+            assert all(x == int(x) and 0 <= x <= n_agents for x in num)
+        elif n.endswith("rmse_p_all_m"):
+            assert den == [K * n_agents] * runs
+            per_step = np.asarray(ser[n.replace("rmse_p_all_m", "rmse_p_m")])
+            assert f[n] == pytest.approx(math.sqrt(np.mean(per_step**2)), rel=1e-12)
+        else:
+            assert u["kind"] == "rmse" and den == [n_agents] * runs
+            k = int(n.split(".")[2][1:])
+            assert f[n] == ser[n.replace(f".k{k}.", ".")][k - 1]  # the series, bit for bit
+
+
+def test_first_method_over_the_others_on_the_same_runs(tiny):
+    """``pfbp_vs_<m>.*.ratio``: the ratio of the two written figures, with a paired interval
+    around it; no other pairs."""
+    f = tiny["figures"]
+    ratios = sorted(n for n in f if n.endswith(".ratio"))
+    names = ["k1.rmse_p_m", "k3.rmse_p_m", "rmse_p_all_m"]
+    assert ratios == sorted(
+        f"pfbp_vs_{m}.s1.{n}.ratio" for m in ("sirbp", "spbp", "edh") for n in names
+    )
+    for m in ("sirbp", "spbp", "edh"):
+        for n in names:
+            r = f[f"pfbp_vs_{m}.s1.{n}.ratio"]
+            assert r == f[f"pfbp.s1.{n}"] / f[f"{m}.s1.{n}"]
+            lo, hi = f[f"pfbp_vs_{m}.s1.{n}.ratio.ci_low"], f[f"pfbp_vs_{m}.s1.{n}.ratio.ci_high"]
+            assert math.isfinite(lo) and lo <= r * (1 + 1e-12) and r <= hi * (1 + 1e-12)
+    rows = te.summary_rows(tiny)
+    assert rows[0][:2] == ("s1", "pfbp")
+    assert rows[0][2].startswith(f"{f['pfbp.s1.k1.rmse_p_m']:.3g} [")
+    assert any("pfbp / other on the same runs" in line for line in te.summary_lines(tiny))
+
+
 def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     f, ser, meta = fast_s1["figures"], fast_s1["series"], fast_s1["meta"]
     K = meta["n_steps"]
@@ -143,7 +216,12 @@ def test_same_results_with_one_and_two_workers():
     for n in names:
         assert one["figures"][n] == two["figures"][n], n
     for n, x in one["series"].items():
-        np.testing.assert_array_equal(x, two["series"][n], err_msg=n)
+        if isinstance(x, dict):  # the per-run values of a pooled figure
+            assert x.keys() == two["series"][n].keys()
+            for key, val in x.items():
+                np.testing.assert_array_equal(val, two["series"][n][key], err_msg=n)
+        else:
+            np.testing.assert_array_equal(x, two["series"][n], err_msg=n)
     # different runs really see different scenarios
     other = te.TRACKING.run(load_recipe(TINY.replace("seed = 3", "seed = 4")), progress=False)
     assert other["figures"]["pfbp.s1.k3.rmse_p_m"] != one["figures"]["pfbp.s1.k3.rmse_p_m"]
@@ -255,7 +333,10 @@ def test_a_variant_runs_its_base_method_with_its_own_table():
     fb = {n.replace("sirbp.", "sirbp_small.", 1): x for n, x in b["figures"].items()}
     fb = {n.replace("sirbp_over_pfbp", "x"): x for n, x in fb.items() if not is_timing(n)}
     fa = {n.replace("sirbp_over_pfbp", "x"): x for n, x in fa.items()}
-    assert fa == fb
+    assert fa.keys() == fb.keys()
+    # the bootstrap's stream follows the figure's name: a renamed figure's interval differs
+    same = [n for n in fa if ".ci_" not in n or not n.startswith(("sirbp", "pfbp_vs_sirbp"))]
+    assert {n: fa[n] for n in same} == {n: fb[n] for n in same}
     # a variant's table needs a registered base; a registered name cannot be redefined
     for old, new, key in (
         ('method = "sirbp"', 'method = "sirbpp"', "localization.sirbp_small.method"),
@@ -357,9 +438,16 @@ def test_method_runs_limits_one_method_and_leaves_the_others_alone():
         if is_timing(k) or not k.startswith(("sirbp.", "pfbp.", "spbp.", "edh.")):
             continue
         ref = h[k] if k.startswith("sirbp.") else g[k]
-        assert val == pytest.approx(ref, rel=1e-12), k
+        assert val == pytest.approx(ref, rel=1e-12, nan_ok=True), k
         checked += 1
     assert checked > 40
+    assert math.isnan(f["sirbp.s1.k3.rmse_p_m.ci_low"])  # one run: no interval
+    # pfbp against sirbp over the one run both ran: the ratio of the 1-run recipe's figures
+    for n in ("k3.rmse_p_m", "rmse_p_all_m"):
+        assert f[f"pfbp_vs_sirbp.s1.{n}.ratio"] == pytest.approx(
+            h[f"pfbp.s1.{n}"] / h[f"sirbp.s1.{n}"], rel=1e-12
+        )
+        assert f[f"pfbp_vs_spbp.s1.{n}.ratio"] == f[f"pfbp.s1.{n}"] / f[f"spbp.s1.{n}"]
     # the limited method's ratio uses the bound of its own run, not of all three
     assert f["sirbp.s1.k3.rmse_over_pcrlb_cond"] != pytest.approx(
         f["sirbp.s1.k3.rmse_p_m"] / f["pcrlb_cond.s1.k3.p_m"], rel=1e-9

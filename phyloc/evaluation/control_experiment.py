@@ -17,12 +17,31 @@ as lost)::
 
     p.track_loss_pct                 at experiment.track_loss_m (5 m by default)
     p.track_loss_ci_low_pct, p.track_loss_ci_high_pct   Wilson 95 % interval of it
+    p.track_loss_fraction            the same as a fraction, with its exact (Clopper–Pearson)
+                                     95 % interval .ci_low / .ci_high over the tracks
     p.track_loss_pct_<T>m            at every threshold of experiment.thresholds_m
+    p.track_loss_fraction_<T>m       the same as a fraction, with .ci_low / .ci_high
     p.k<K>.log10_mse_mean            mean over trials of log₁₀ MSE at the last step K
                                      (MSE: mean over agents of the squared position error)
     p.late_log10_mse_mean            the same averaged over the last 10 steps
     p.decision_s                     mean controller time per decision [s]
     p.diverged_pct                   trials whose estimator diverged
+    p.diverged_fraction              the same as a fraction, with .ci_low / .ci_high
+    <a>_vs_<b>.track_loss_fraction.ratio   tracks lost by ``a`` over those lost by ``b`` on the
+                                     same trials, with .ci_low / .ci_high (paired bootstrap
+                                     over trials): every FIM-controlled label against
+                                     ``static`` and ``random``, every receding-horizon label
+                                     against every myopic one (:func:`comparisons`; none where
+                                     ``b`` lost no track)
+
+The ``_fraction`` figures and the two log-MSE means carry a 95 % interval, ``<name>.ci_low`` and
+``<name>.ci_high`` (:mod:`phyloc.evaluation.statistics`; NaN with a single trial), and their
+per-trial values in the series ``<name>.units``. Their unit is the *trial*, not the task (a
+block of ``experiment.task_trials`` trials): every trial is an independent draw, and the
+intervals do not depend on the grouping. The log-MSE means are resampled over trials
+(bootstrap); the track-loss and divergence fractions use the exact binomial interval on the
+totals (tracks of one trial treated as independent). The ``_pct`` figures keep their earlier
+form (they are 100 × the fractions).
 
 Series: ``p.log10_mse_by_step`` (FIM Fig. 5), the example trial ``experiment.example_trial``
 (FIM Fig. 4): ``example.truth`` ``[K + 1, n_agents, dim]``, ``example.static``,
@@ -54,7 +73,8 @@ from phyloc.control.policies import POLICIES, PolicySpec
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment, experiment_from_dict
 from phyloc.evaluation.methods import method_plan
-from phyloc.reporting import grouped_bars, new_figure, save_figure
+from phyloc.evaluation.statistics import Paired, Pooled
+from phyloc.reporting import grouped_bars, new_figure, save_figure, with_interval
 
 #: Squared errors of a diverged estimator count as this [m²] in the log-MSE means.
 DIVERGED_M2 = 1e12
@@ -224,7 +244,11 @@ def _fmt_m(t: float) -> str:
 
 
 def _aggregate(results, exp, plan, scenario):
-    figures: dict[str, float] = {}
+    """Pool the trials: the track-loss fractions and the log-MSE means are
+    :class:`~phyloc.evaluation.statistics.Pooled` figures whose units are the trials (their
+    intervals do not depend on how trials are grouped into tasks); :func:`_comparisons` adds
+    the paired ratios."""
+    figures: dict[str, object] = {}
     series: dict[str, object] = {}
     K = scenario.steps
     example = None
@@ -247,15 +271,26 @@ def _aggregate(results, exp, plan, scenario):
         figures[f"{label}.track_loss_pct"] = pct
         figures[f"{label}.track_loss_ci_low_pct"] = 100.0 * lo
         figures[f"{label}.track_loss_ci_high_pct"] = 100.0 * hi
+        figures[f"{label}.track_loss_fraction"] = Pooled.fraction(
+            ~(final <= exp.track_loss_m**2)  # one row of tracks per trial
+        )
         for th in exp.thresholds_m:
             figures[f"{label}.track_loss_pct_{_fmt_m(th)}m"] = loss(th)[1]
+            figures[f"{label}.track_loss_fraction_{_fmt_m(th)}m"] = Pooled.fraction(
+                ~(final <= th * th)
+            )
         mse = np.mean(np.where(np.isfinite(err2), err2, DIVERGED_M2), axis=2)  # [n, K]
         log_mse = np.log10(np.maximum(mse, 1e-300))
         by_step = log_mse.mean(axis=0)
-        figures[f"{label}.k{K}.log10_mse_mean"] = float(by_step[-1])
-        figures[f"{label}.late_log10_mse_mean"] = float(by_step[-LATE_STEPS:].mean())
+        figures[f"{label}.k{K}.log10_mse_mean"] = _as_computed(
+            Pooled.mean(log_mse[:, -1]), by_step[-1]
+        )
+        figures[f"{label}.late_log10_mse_mean"] = _as_computed(
+            Pooled.mean(log_mse[:, -LATE_STEPS:]), by_step[-LATE_STEPS:].mean()
+        )
         figures[f"{label}.decision_s"] = float(dec.mean())
         figures[f"{label}.diverged_pct"] = 100.0 * float(diverged.mean())
+        figures[f"{label}.diverged_fraction"] = Pooled.fraction(diverged[:, None])
         series[f"{label}.log10_mse_by_step"] = by_step
         if example is not None:
             series[f"{label}.example.mobile"] = np.round(example["by"][label]["mobile"], 3)
@@ -263,11 +298,52 @@ def _aggregate(results, exp, plan, scenario):
     if example is not None:
         series["example.truth"] = np.round(example["truth"], 3)
         series["example.static"] = np.round(example["static"], 3)
+    _comparisons(figures, plan)
     return figures, series
 
 
+#: The policies the FIM paper's controllers are compared against.
+BASELINES = ("static", "random")
+
+
+def comparisons(plan) -> list[tuple[str, str]]:
+    """The pairs ``(a, b)`` of policy labels compared by a paired ratio: every FIM-controlled
+    label (``fim_myopic``, ``fim_rh`` and their variants) against every baseline
+    (:data:`BASELINES`), and every receding-horizon label against every myopic one."""
+    kind = {label: spec.policy for label, spec in plan.items()}
+    fim = [p for p in plan if kind[p] not in BASELINES]
+    return [(a, b) for a in fim for b in plan if kind[b] in BASELINES] + [
+        (a, b) for a in fim for b in fim if kind[a] == "fim_rh" and kind[b] == "fim_myopic"
+    ]
+
+
+def _comparisons(figures, plan) -> None:
+    """``<a>_vs_<b>.track_loss_fraction``: the paired ratio of the tracks lost over the same
+    trials (the policies share every trial's draws) for the pairs of :func:`comparisons`;
+    below 1 favours ``a``. None where ``b`` lost no track."""
+    for a, b in comparisons(plan):
+        x, y = figures[f"{a}.track_loss_fraction"], figures[f"{b}.track_loss_fraction"]
+        if y.value != 0:
+            figures[f"{a}_vs_{b}.track_loss_fraction"] = Paired(x, y)
+
+
+def _as_computed(p: Pooled, value) -> Pooled:
+    """``p`` with the point value computed from all the values at once, so that it stays bit
+    for bit what it was (:meth:`~phyloc.evaluation.statistics.Pooled.at`)."""
+    return p.at(value)
+
+
+def _pct(figures: dict, name: str):
+    """The fraction ``name`` and its interval in percent as one table cell
+    (:func:`~phyloc.reporting.with_interval`)."""
+    keys = (name, name + ".ci_low", name + ".ci_high")
+    scaled = {k: 100.0 * figures[k] for k in keys if figures.get(k) is not None}
+    return with_interval(scaled, name)
+
+
 def summary_rows(results: dict):
-    """Per policy: track loss with its interval, per threshold, final log-MSE, decision time."""
+    """Per policy: track loss with its 95 % interval, per threshold, final log-MSE with its
+    interval over trials, decision time."""
     f, meta = results["figures"], results["meta"]
     K = meta["steps"]
     rows = []
@@ -275,13 +351,18 @@ def summary_rows(results: dict):
         per = " / ".join(
             f"{f[f'{p}.track_loss_pct_{_fmt_m(t)}m']:.2f}" for t in meta["thresholds_m"]
         )
+        loss = (
+            _pct(f, f"{p}.track_loss_fraction")
+            if f"{p}.track_loss_fraction" in f  # runs stored before the intervals: Wilson
+            else f"{f[f'{p}.track_loss_pct']:.3g} [{f[f'{p}.track_loss_ci_low_pct']:.3g}, "
+            f"{f[f'{p}.track_loss_ci_high_pct']:.3g}]"
+        )
         rows.append(
             (
                 p,
-                f[f"{p}.track_loss_pct"],
-                f"[{f[f'{p}.track_loss_ci_low_pct']:.2f}, {f[f'{p}.track_loss_ci_high_pct']:.2f}]",
+                loss,
                 per,
-                f[f"{p}.k{K}.log10_mse_mean"],
+                with_interval(f, f"{p}.k{K}.log10_mse_mean"),
                 1e3 * f[f"{p}.decision_s"],
             )
         )
@@ -289,31 +370,75 @@ def summary_rows(results: dict):
 
 
 def summary_lines(results: dict):
-    """Trials, thresholds and the scenario."""
-    meta = results["meta"]
+    """Trials, thresholds, the scenario, the intervals and the paired track-loss ratios."""
+    f, meta = results["figures"], results["meta"]
     th = ", ".join(f"{t:g}" for t in meta["thresholds_m"])
-    return [
+    out = [
         f"{meta['trials']} trials, {meta['steps']} steps; {meta['agents']} agent(s), "
         f"{meta['mobile_anchors']} mobile + {meta['static_anchors']} static anchor(s), "
         f"|U| = {meta['controls']}, estimator {meta['estimator']}",
         f"track lost: final position error > {meta['track_loss_m']:g} m "
         f"(per-threshold column: {th} m)",
+        "[95 % intervals: Clopper-Pearson over tracks (track loss), bootstrap over trials "
+        "(log10 MSE)]",
     ]
+    ratios = [
+        f"{k.split('.')[0].replace('_vs_', '/')} {_text(with_interval(f, k))}"
+        for k in f
+        if k.endswith(".track_loss_fraction.ratio")
+    ]
+    if ratios:
+        out.append("tracks lost, ratio over the same trials: " + ", ".join(ratios))
+    return out
+
+
+def _text(x) -> str:
+    return "n/a" if x is None else x if isinstance(x, str) else f"{x:.3g}"
+
+
+def _loss_bars(ax, pols, figures, thresholds) -> None:
+    """The 95 % intervals of the track-loss fractions (in percent) as error bars on the bars
+    of :func:`~phyloc.reporting.grouped_bars` (the same positions)."""
+    width = 0.8 / len(thresholds)
+    x = np.arange(len(pols))
+    for j, t in enumerate(thresholds):
+        names = [f"{p}.track_loss_fraction_{_fmt_m(t)}m" for p in pols]
+        y, lo, hi = (
+            100.0 * np.array([_num(figures.get(n + s)) for n in names])
+            for s in ("", ".ci_low", ".ci_high")
+        )
+        ok = np.isfinite(y) & np.isfinite(lo) & np.isfinite(hi)
+        if ok.any():
+            err = np.maximum(0.0, [y[ok] - lo[ok], hi[ok] - y[ok]])
+            ax.errorbar(
+                (x + j * width)[ok], y[ok], yerr=err, fmt="none", ecolor="k", capsize=2, lw=1
+            )
+
+
+def _num(x) -> float:
+    return np.nan if x is None else float(x)
 
 
 def plot(results: dict, path) -> None:
-    """FIM Fig. 5 (mean log₁₀ MSE per step), Fig. 4 (example trial in 3-D), track loss."""
+    """FIM Fig. 5 (mean log₁₀ MSE per step, its 95 % interval over trials at the last step),
+    Fig. 4 (example trial in 3-D), track loss (95 % intervals as error bars)."""
     f, ser, meta = results["figures"], results["series"], results["meta"]
     pols = meta["policies"]
     fig, _ = new_figure(0, 0, size=(16.0, 5.0))  # panels added one by one (one in 3-D)
     color = {p: f"C{i}" for i, p in enumerate(pols)}
     ax = fig.add_subplot(1, 3, 1)
-    for p in pols:
+    K = meta["steps"]
+    for i, p in enumerate(pols):
         y = np.asarray(ser[f"{p}.log10_mse_by_step"])
         ax.plot(np.arange(1, y.size + 1), y, color=color[p], label=p)
+        name = f"{p}.k{K}.log10_mse_mean"
+        lo, hi = _num(f.get(name + ".ci_low")), _num(f.get(name + ".ci_high"))
+        if np.isfinite(lo) and np.isfinite(hi):  # side by side just right of k = K
+            k = K + 0.15 * (i + 1) * max(1, K // 10)
+            ax.plot([k, k], [lo, hi], "-", color=color[p], lw=2.5, alpha=0.6)
     ax.set_xlabel("time step k")
     ax.set_ylabel("mean of log10 MSE [m²]")
-    ax.set_title(f"agent position MSE ({meta['trials']} trials)")
+    ax.set_title(f"agent position MSE ({meta['trials']} trials; bar at k = K: 95 % interval)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     truth = ser.get("example.truth")
@@ -345,8 +470,9 @@ def plot(results: dict, path) -> None:
         for t in meta["thresholds_m"]
     }
     grouped_bars(ax, pols, groups)
+    _loss_bars(ax, pols, f, meta["thresholds_m"])
     ax.set_ylabel("tracks lost [%]")
-    ax.set_title("track loss (final position error)")
+    ax.set_title("track loss (final position error; 95 % intervals)")
     fig.suptitle(f"Mobile-anchor control — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}")
     save_figure(fig, path)
 
@@ -362,10 +488,9 @@ class ControlExperiment(Experiment):
     progress_label = "control trials"
     headers = (
         "policy",
-        "track loss %",
-        "95 % CI",
+        "track loss % [95 % CI]",
         "loss % per threshold",
-        "log10 MSE (k=K)",
+        "log10 MSE (k=K) [95 % CI]",
         "decision [ms]",
     )
 

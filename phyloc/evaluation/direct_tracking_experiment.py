@@ -28,6 +28,19 @@ errors of DiPNet eq. (4), pooled over snapshots and realizations)::
                                        at most / above ``experiment.fast_speed_m_s``
     m.e.agent_snapshot_s               filter time per agent and snapshot
     m.e.agent_iteration_s              filter time per agent-iteration
+    a_vs_m.e.rmse_m.ratio (and .rmse_slow_m.ratio, .rmse_fast_m.ratio where the run has such
+                                       snapshots)   the first method ``a`` of
+                                       ``experiment.methods`` over each other one: the ratio of
+                                       their RMSEs on the same realizations (below 1 favours
+                                       ``a``; DiPNet against parametric SAGE, sample-based DPE
+                                       and sample-based SAGE in the replica)
+
+95 % intervals (the unit is a realization, :mod:`phyloc.evaluation.statistics`): ``rmse_m``,
+``rmse_slow_m``, ``rmse_fast_m`` and ``errors_over_2m_pct`` (a mean of 100·[error > 2 m]) have
+``<name>.ci_low`` / ``<name>.ci_high`` (bootstrap over realizations) and their per-realization
+values in the series ``<name>.units``; every ``….ratio`` has the paired bootstrap's interval
+(``.ratio.ci_low`` / ``.ratio.ci_high``). With one realization per run they are NaN. Median,
+90th percentile and the timings carry none.
 
 Series: ``m.e.rmse_by_snapshot`` (Fig. 7 a, b), ``m.e.error_cdf`` on ``cdf_grid_m``
 (Fig. 7 c, d), ``e.true_track`` (realization 0), ``m.e.track`` for the first run (realization
@@ -59,10 +72,13 @@ from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.front_end import localize_realization
 from phyloc.evaluation.metrics import rigid_align
 from phyloc.evaluation.sections import LocalizationSpec, RangingSpec
+from phyloc.evaluation.statistics import Paired, Pooled
+from phyloc.evaluation.tracking_experiment import pooled_at
+from phyloc.evaluation.tracking_figures import error_bars
 from phyloc.localization import METHODS as REGISTRY
 from phyloc.localization import DirectOptions
 from phyloc.network import NetworkSpec
-from phyloc.reporting import grouped_bars, new_figure, save_figure
+from phyloc.reporting import grouped_bars, new_figure, save_figure, with_interval
 
 PAPER_METHODS = ("dipnet", "dpe_sampled", "sage_parametric", "sage_sampled")
 """The four methods of DiPNet Figs. 6–7."""
@@ -251,7 +267,7 @@ def _particles_method(labels):
 
 
 def _aggregate(keys, results, exp, runs, labels):
-    figures: dict[str, float] = {}
+    figures: dict[str, object] = {}
     series: dict[str, object] = {"cdf_grid_m": CDF_GRID_M}
     for run_name in runs:
         parts = [res for (name, _), res in zip(keys, results, strict=True) if name == run_name]
@@ -265,10 +281,17 @@ def _aggregate(keys, results, exp, runs, labels):
             base = f"{m}.{run_name}"
             figures[base + ".median_error_m"] = float(np.median(err))
             figures[base + ".p90_error_m"] = float(np.percentile(err, 90))
-            figures[base + ".errors_over_2m_pct"] = float(100.0 * np.mean(err > THRESHOLD_M))
-            figures[base + ".rmse_m"] = _rmse(err)
-            figures[base + ".rmse_slow_m"] = _rmse(rmse_t[:, ~fast_t])
-            figures[base + ".rmse_fast_m"] = _rmse(rmse_t[:, fast_t])
+            figures[base + ".errors_over_2m_pct"] = pooled_at(  # in percent: a mean, not a
+                Pooled.mean([100.0 * (p[m]["err"] > THRESHOLD_M) for p in parts]),  # fraction
+                100.0 * np.mean(err > THRESHOLD_M),
+            )
+            figures[base + ".rmse_m"] = pooled_at(
+                Pooled.rmse([p[m]["err"] for p in parts]), _rmse(err)
+            )
+            for seg, sel in (("slow", ~fast_t), ("fast", fast_t)):  # per realization: its
+                figures[f"{base}.rmse_{seg}_m"] = pooled_at(  # per-snapshot RMSEs there
+                    Pooled.rmse([r[sel] for r in rmse_t]), _rmse(rmse_t[:, sel])
+                )
             figures[base + ".agent_snapshot_s"] = float(
                 np.mean([p[m]["agent_snapshot_s"] for p in parts])
             )
@@ -288,11 +311,28 @@ def _aggregate(keys, results, exp, runs, labels):
                 and "particles" in parts[0][m]
             ):
                 series[base + ".particles"] = np.round(parts[0][m]["particles"], PICTURE_DECIMALS)
+        _comparisons(figures, labels, run_name, fast_t)
     return figures, series
 
 
+def _comparisons(figures, labels, run_name, fast_t):
+    """Paired ratios of the RMSEs over the same realizations: the first method against every
+    other (``<first>_vs_<m>``; below 1 favours the first); the slow and fast segments only
+    where the run has such snapshots."""
+    names = ["rmse_m"] + [
+        f"rmse_{seg}_m" for seg, sel in (("slow", ~fast_t), ("fast", fast_t)) if sel.any()
+    ]
+    a = labels[0]
+    for m in labels[1:]:
+        for name in names:
+            figures[f"{a}_vs_{m}.{run_name}.{name}"] = Paired(
+                figures[f"{a}.{run_name}.{name}"], figures[f"{m}.{run_name}.{name}"]
+            )
+
+
 def summary_rows(results: dict):
-    """Per run and method: error median, 90th percentile, outliers, RMSE, runtime."""
+    """Per run and method: error median, 90th percentile, outliers, RMSE, runtime (outliers
+    and RMSEs with their 95 % intervals over realizations when the run has them)."""
     f, meta = results["figures"], results["meta"]
     rows = []
     for run_name in meta["runs"]:
@@ -304,9 +344,9 @@ def summary_rows(results: dict):
                     m,
                     f[b + ".median_error_m"],
                     f[b + ".p90_error_m"],
-                    f[b + ".errors_over_2m_pct"],
-                    f[b + ".rmse_slow_m"],
-                    f[b + ".rmse_fast_m"],
+                    with_interval(f, b + ".errors_over_2m_pct"),
+                    with_interval(f, b + ".rmse_slow_m"),
+                    with_interval(f, b + ".rmse_fast_m"),
                     1e3 * f[b + ".agent_snapshot_s"],
                 )
             )
@@ -314,18 +354,33 @@ def summary_rows(results: dict):
 
 
 def summary_lines(results: dict):
-    """Snapshots, particle counts and the fast segment."""
+    """Snapshots, particle counts, the fast segment and the paired RMSE ratios of the first
+    method over the others."""
     f, meta = results["figures"], results["meta"]
     runs = ", ".join(
         f"{r}: {meta['n_snapshots'][r]} snapshots ({f[f'{r}.fast_snapshots']} fast)"
         for r in meta["runs"]
     )
     q = ", ".join(f"{m} {n}" for m, n in meta["n_particles"].items())
-    return [
-        "absolute framework distance errors (DiPNet eq. (4)) pooled over snapshots; truth-free",
+    out = [
+        (
+            "absolute framework distance errors (DiPNet eq. (4)) pooled over snapshots; "
+            "truth-free [95 % interval over realizations]"
+        ),
         f"{runs}; fast: some agent faster than {meta['fast_speed_m_s']} m/s",
         f"particles per agent: {q}",
     ]
+    first = meta["methods"][0]
+    for r in meta["runs"]:
+        cells = [
+            (m, with_interval(f, f"{first}_vs_{m}.{r}.rmse_m.ratio")) for m in meta["methods"][1:]
+        ]
+        if cells and all(c is not None for _, c in cells):
+            out.append(
+                f"{r}: RMSE {first} / other on the same realizations: "
+                + "; ".join(f"{m} {c if isinstance(c, str) else f'{c:.3g}'}" for m, c in cells)
+            )
+    return out
 
 
 def plot(results: dict, path) -> None:
@@ -391,8 +446,12 @@ def plot(results: dict, path) -> None:
     ax = axes[1, -1]
     groups = {r: [f[f"{m}.{r}.errors_over_2m_pct"] for m in methods] for r in runs}
     grouped_bars(ax, methods, groups, fontsize=7)
+    width = 0.8 / len(runs)  # the bars' positions in grouped_bars
+    for j, r in enumerate(runs):
+        names = [f"{m}.{r}.errors_over_2m_pct" for m in methods]
+        error_bars(ax, np.arange(len(methods)) + j * width, f, names, "k")
     ax.set_ylabel("errors > 2 m [%]")
-    ax.set_title("outliers")
+    ax.set_title("outliers (bars: 95 % intervals over realizations)")
     fig.suptitle(
         f"Direct localization over time — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
     )

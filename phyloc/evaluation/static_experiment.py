@@ -106,6 +106,22 @@ with ``p`` for the decimal point)::
                                         the sample sweep (Fig. 12)
     ``<m>.ns<n>.topologies``            topologies the sweep ran in (``sample_sweep_topologies``)
     ``poa_nbp_vs_<m>.time_to_convergence_ratio``   ``poa_nbp`` over NBP variant ``<m>``
+    ``<a>_vs_<m>.mean_error_m.ratio``, ``.rmse_m.ratio``, ``.outage_<x>m.ratio``
+                                        method ``<a>`` over method ``<m>`` on the same
+                                        topologies (``<a>``: ``poa_nbp`` when it runs,
+                                        otherwise the first method; every other ``<m>``;
+                                        none where ``<m>``'s figure is 0)
+    ``<a>_vs_<m>.ns<n>.mean_error_m.ratio``, ``.ns<n>.outage_<x>m.ratio``   the same in the
+                                        sample sweep (``<a>`` the first of ``sample_methods``)
+
+Intervals: every figure pooled over topologies — the areas, containment and dropped
+fractions, acceptance rate, overhead means, mean errors, RMSEs and outages (sweep included)
+— has a 95 % interval ``<name>.ci_low`` / ``<name>.ci_high`` (:mod:`phyloc.evaluation.statistics`:
+bootstrap over topologies; fractions and outages: exact binomial interval on the totals) and
+its per-topology values in the series ``<name>.units``; a ratio has
+``<name>.ratio.ci_low`` / ``.ratio.ci_high`` (paired bootstrap over topologies). With a single
+topology the intervals are NaN. Iteration counts (``convergence_iteration``,
+``settling_iteration``), wall times and ``.topologies`` are plain numbers.
 
 Series: ``iteration``; ``<m>.mean_error_m`` per iteration; ``poa.ne<ne>.area_m2`` and
 ``ellipse.area_m2`` per POA iteration; ``outage_threshold_m`` (grid) with ``<m>.outage`` and
@@ -134,12 +150,14 @@ from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.methods import method_plan as plan_methods
 from phyloc.evaluation.static_figures import (
     plot,
+    reference_method,
     summary_headers,
     summary_lines,
     summary_rows,
     threshold_name,
 )
 from phyloc.evaluation.static_scenarios import paper_static_scenario
+from phyloc.evaluation.statistics import Paired, Pooled
 from phyloc.localization import METHODS as REGISTRY
 from phyloc.localization.static import StaticPrior
 from phyloc.localization.static.ellipses import ellipse_outer_approximation
@@ -453,11 +471,14 @@ def _overhead(res) -> dict:
 
 def _overhead_figures(figures, base, parts) -> None:
     """Mean over topologies of each overhead diagnostic, as ``<base>.<name>`` (NaN: none;
-    an existing figure is kept)."""
+    an existing figure is kept), pooled over the topologies (a topology without the
+    diagnostic contributes nothing)."""
     for k in _OVERHEAD:
         vals = np.array([p[k] for p in parts], dtype=np.float64)
         if vals.size and not np.all(np.isnan(vals)):
-            figures.setdefault(f"{base}.{k}", float(np.nanmean(vals)))
+            figures.setdefault(
+                f"{base}.{k}", _as_computed(Pooled.mean(list(vals)), np.nanmean(vals))
+            )
 
 
 def _contained(polygons, truth):
@@ -494,49 +515,68 @@ def settling_from_curve(curve, rel: float, abs_m: float) -> int:
 
 
 def _aggregate(results, exp: StaticExperimentSpec):
-    figures: dict[str, float] = {}
+    """Pool the per-topology outputs: a figure pooled over topologies is a
+    :class:`~phyloc.evaluation.statistics.Pooled` value (its interval resamples topologies;
+    :func:`_comparisons` adds the paired ratios); iteration counts and wall times are plain."""
+    figures: dict[str, object] = {}
     series: dict[str, object] = {
         "iteration": np.arange(1, exp.n_iterations + 1),
         "poa_iteration": np.arange(1, exp.poa_iterations + 1),
         "outage_threshold_m": OUTAGE_GRID_M,
     }
     for ne in exp.n_edges:
-        area = np.concatenate([r[f"poa|{ne}|area"] for r in results], axis=1)  # [L, topo·ag]
-        mean_area = _finite_mean(area)
+        areas = [r[f"poa|{ne}|area"] for r in results]  # per topology [L, agents]
+        mean_area = _finite_mean(np.concatenate(areas, axis=1))  # [L] over topo·agents
         series[f"poa.ne{ne}.area_m2"] = mean_area
         for it in range(exp.poa_iterations):
-            figures[f"poa.ne{ne}.area_it{it + 1}_m2"] = float(mean_area[it])
-        cont = np.concatenate([r[f"poa|{ne}|contained"] for r in results])
-        figures[f"poa.ne{ne}.containment_fraction"] = float(cont.mean())
-        figures[f"poa.ne{ne}.operations_per_node"] = float(
-            np.mean([r[f"poa|{ne}|ops"] for r in results])
+            figures[f"poa.ne{ne}.area_it{it + 1}_m2"] = _as_computed(
+                Pooled.mean([a[it] for a in areas]), mean_area[it]
+            )
+        figures[f"poa.ne{ne}.containment_fraction"] = Pooled.fraction(
+            [r[f"poa|{ne}|contained"] for r in results]
+        )
+        figures[f"poa.ne{ne}.operations_per_node"] = _as_computed(
+            Pooled.mean([r[f"poa|{ne}|ops"] for r in results]),
+            np.mean([r[f"poa|{ne}|ops"] for r in results]),
         )
         fl = np.array([r[f"poa|{ne}|floats"] for r in results], dtype=np.float64)
         if not np.all(np.isnan(fl)):  # NaN: no broadcast (poa_iterations = 1)
-            figures[f"poa.ne{ne}.floats_per_link_iteration"] = float(np.nanmean(fl))
+            figures[f"poa.ne{ne}.floats_per_link_iteration"] = _as_computed(
+                Pooled.mean(list(fl)), np.nanmean(fl)
+            )
     if exp.ellipses:
-        area = np.concatenate([r["ellipse|area"] for r in results], axis=1)
-        mean_area = _finite_mean(area)
+        areas = [r["ellipse|area"] for r in results]
+        mean_area = _finite_mean(np.concatenate(areas, axis=1))
         series["ellipse.area_m2"] = mean_area
         for it in range(exp.poa_iterations):
-            figures[f"ellipse.area_it{it + 1}_m2"] = float(mean_area[it])
-    figures["poa.containment_fraction"] = float(
-        np.concatenate([r["poa|contained"] for r in results]).mean()
-    )
+            figures[f"ellipse.area_it{it + 1}_m2"] = _as_computed(
+                Pooled.mean([a[it] for a in areas]), mean_area[it]
+            )
+    figures["poa.containment_fraction"] = Pooled.fraction([r["poa|contained"] for r in results])
     figures["poa.time_per_node_s"] = float(np.mean([r["poa|time_per_node_s"] for r in results]))
-    figures["poa.rejection_acceptance_rate"] = float(
-        np.mean(np.concatenate([r["poa|acceptance"] for r in results]))
+    accept = [r["poa|acceptance"] for r in results]
+    figures["poa.rejection_acceptance_rate"] = _as_computed(
+        _mean_units(accept), np.mean(np.concatenate(accept))
     )
     dropped = sum(r["poa|dropped"][0] for r in results)
     n_meas = sum(r["poa|dropped"][1] for r in results)
-    figures["poa.dropped_fraction"] = dropped / max(n_meas, 1)
+    figures["poa.dropped_fraction"] = (
+        Pooled(
+            [r["poa|dropped"][0] for r in results],
+            [r["poa|dropped"][1] for r in results],
+            "fraction",
+        )
+        if n_meas > 0
+        else dropped / max(n_meas, 1)
+    )
     for m in exp.methods:
+        errs = [r[f"{m}|err"][-1] for r in results]  # per topology: errors after convergence
         err = np.concatenate([r[f"{m}|err"] for r in results], axis=1)  # [n_iter, topo·agents]
         curve = err.mean(axis=1)
         series[f"{m}.mean_error_m"] = curve
         final = err[-1]
-        figures[f"{m}.mean_error_m"] = float(final.mean())
-        figures[f"{m}.rmse_m"] = float(np.sqrt(np.mean(final**2)))
+        figures[f"{m}.mean_error_m"] = _as_computed(_mean_units(errs), final.mean())
+        figures[f"{m}.rmse_m"] = _as_computed(Pooled.rmse(errs), np.sqrt(np.mean(final**2)))
         conv = convergence_from_curve(curve, exp.convergence_rel, exp.convergence_abs_m)
         figures[f"{m}.convergence_iteration"] = float(conv)
         figures[f"{m}.settling_iteration"] = float(
@@ -548,21 +588,24 @@ def _aggregate(results, exp: StaticExperimentSpec):
         figures[f"{m}.time_to_convergence_s"] = conv * t_it + t_sup
         series[f"{m}.outage"] = np.mean(final[:, None] > OUTAGE_GRID_M, axis=0)
         for x in exp.outage_thresholds_m:
-            figures[f"{m}.outage_{threshold_name(x)}"] = float(np.mean(final > x))
+            figures[f"{m}.outage_{threshold_name(x)}"] = Pooled.fraction([e > x for e in errs])
         _overhead_figures(figures, f"{m}.ns{exp.n_samples}", [r[f"{m}|overhead"] for r in results])
     for m in exp.sample_methods:
         for ns in exp.sample_sweep:
             swept = [r for r in results if f"{m}|ns{ns}|err" in r]  # sample_sweep_topologies
-            e = np.concatenate([r[f"{m}|ns{ns}|err"] for r in swept])
+            errs = [r[f"{m}|ns{ns}|err"] for r in swept]
+            e = np.concatenate(errs)
             base = f"{m}.ns{ns}"
             figures[f"{base}.topologies"] = float(len(swept))
-            figures[f"{base}.mean_error_m"] = float(e.mean())
+            figures[f"{base}.mean_error_m"] = _as_computed(_mean_units(errs), e.mean())
             figures[f"{base}.time_per_node_iteration_s"] = float(
                 np.mean([r[f"{m}|ns{ns}|time"] for r in swept])
             )
             series[f"{base}.outage"] = np.mean(e[:, None] > OUTAGE_GRID_M, axis=0)
             for x in exp.outage_thresholds_m:
-                figures[f"{base}.outage_{threshold_name(x)}"] = float(np.mean(e > x))
+                figures[f"{base}.outage_{threshold_name(x)}"] = Pooled.fraction(
+                    [ei > x for ei in errs]
+                )
             _overhead_figures(figures, base, [r[f"{m}|ns{ns}|overhead"] for r in swept])
     if "poa_nbp" in exp.methods:  # POA-NBP Table I: POA-NBP against the other NBP variants
         for m in exp.methods:
@@ -570,7 +613,54 @@ def _aggregate(results, exp: StaticExperimentSpec):
                 figures[f"poa_nbp_vs_{m}.time_to_convergence_ratio"] = (
                     figures["poa_nbp.time_to_convergence_s"] / figures[f"{m}.time_to_convergence_s"]
                 )
+    _comparisons(figures, exp)
     return figures, series
+
+
+#: The figures of a method compared by a paired ratio (:func:`_comparisons`), besides the
+#: outages ``outage_<x>m``.
+COMPARED = ("mean_error_m", "rmse_m")
+
+
+def _comparisons(figures, exp: StaticExperimentSpec) -> None:
+    """Paired ratios over the same topologies (every method runs on the same ranges):
+    :func:`~phyloc.evaluation.static_figures.reference_method` ``a`` against every other
+    method ``m``, ``<a>_vs_<m>.mean_error_m``, ``.rmse_m`` and ``.outage_<x>m``; in the sample
+    sweep the first of ``sample_methods`` against the others at every ``N_S``,
+    ``<a>_vs_<m>.ns<n>.mean_error_m`` and ``.ns<n>.outage_<x>m``. A ratio below 1 favours
+    ``a``; there is none where ``m``'s figure is 0 (an outage no agent had)."""
+    outages = [f"outage_{threshold_name(x)}" for x in exp.outage_thresholds_m]
+    a = reference_method(exp.methods)
+    pairs = [
+        (f"{a}_vs_{m}", f"{a}.{q}", f"{m}.{q}", q)
+        for m in exp.methods
+        if m != a
+        for q in (*COMPARED, *outages)
+    ]
+    a, *others = exp.sample_methods or ("",)
+    pairs += [
+        (f"{a}_vs_{m}", f"{a}.ns{ns}.{q}", f"{m}.ns{ns}.{q}", f"ns{ns}.{q}")
+        for m in others
+        for ns in exp.sample_sweep
+        for q in ("mean_error_m", *outages)
+    ]
+    for head, x, y, q in pairs:
+        if figures[y].value != 0:
+            figures[f"{head}.{q}"] = Paired(figures[x], figures[y])
+
+
+def _mean_units(arrays) -> Pooled:
+    """The mean of every value of ``arrays`` (one per topology) as a ``"mean"``
+    :class:`Pooled` figure; unlike :meth:`Pooled.mean` a NaN is kept (the figure is NaN, as
+    the mean of the pooled values was)."""
+    arrs = [np.asarray(a, dtype=np.float64).ravel() for a in arrays]
+    return Pooled([float(np.sum(a)) for a in arrs], [a.size for a in arrs], "mean")
+
+
+def _as_computed(p: Pooled, value) -> Pooled:
+    """``p`` with the point value computed from all the values at once, so that it stays bit
+    for bit what it was (:meth:`~phyloc.evaluation.statistics.Pooled.at`)."""
+    return p.at(value)
 
 
 def _finite_mean(area):

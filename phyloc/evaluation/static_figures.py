@@ -9,13 +9,16 @@ indoor localization."
 
 from __future__ import annotations
 
-from phyloc.reporting import new_figure, save_figure
+import numpy as np
+
+from phyloc.reporting import draw_interval, new_figure, save_figure, with_interval
 
 #: Suffixes of the wall-time figures.
 TIMING_SUFFIXES = ("_s", "_ratio")
 
 
 def threshold_name(x: float) -> str:
+    """The threshold ``x`` [m] as written in figure names: ``0.5`` → ``0p5m``."""
     return f"{x:g}".replace(".", "p") + "m"
 
 
@@ -41,7 +44,8 @@ def summary_headers(results: dict):
 
 
 def summary_rows(results: dict):
-    """Accuracy after convergence, iterations and time to convergence per method."""
+    """Accuracy after convergence (with its 95 % interval over topologies when the run has
+    one), iterations and time to convergence per method."""
     f, meta = results["figures"], results["meta"]
     tok = f"ns{meta['experiment']['n_samples']}"
     rows = []
@@ -49,12 +53,15 @@ def summary_rows(results: dict):
         rows.append(
             (
                 meta["labels"].get(m, m),
-                f[f"{m}.mean_error_m"],
-                f[f"{m}.rmse_m"],
+                with_interval(f, f"{m}.mean_error_m"),
+                with_interval(f, f"{m}.rmse_m"),
                 int(f[f"{m}.convergence_iteration"]),
                 f[f"{m}.time_per_node_iteration_s"],
                 f[f"{m}.time_to_convergence_s"],
-                *[f[f"{m}.outage_{threshold_name(x)}"] for x in meta["outage_thresholds_m"]],
+                *[
+                    with_interval(f, f"{m}.outage_{threshold_name(x)}")
+                    for x in meta["outage_thresholds_m"]
+                ],
                 f.get(f"{m}.{tok}.floats_per_link_iteration", float("nan")),
                 f.get(f"{m}.{tok}.operations_per_node", float("nan")),
             )
@@ -62,17 +69,44 @@ def summary_rows(results: dict):
     return rows
 
 
+def reference_method(methods) -> str:
+    """The method the paired ratios compare against every other one: ``poa_nbp`` (the
+    POA-NBP paper's proposal) when it runs, otherwise the first method."""
+    return "poa_nbp" if "poa_nbp" in methods else methods[0]
+
+
+def _cell(figures: dict, name: str) -> str:
+    """:func:`~phyloc.reporting.with_interval` as text (3 significant digits)."""
+    x = with_interval(figures, name)
+    return "n/a" if x is None else x if isinstance(x, str) else f"{x:.3g}"
+
+
 def summary_lines(results: dict):
-    """Polygon study and sample sweep in a few lines."""
+    """What the intervals are, the paired ratios of the mean error, the polygon study and
+    the sample sweep in a few lines."""
     f, meta = results["figures"], results["meta"]
     L = meta["experiment"]["poa_iterations"]
+    label = meta["labels"]
+    ref = reference_method(meta["methods"])
     out = [
+        "[95 % interval over topologies: bootstrap (errors), Clopper-Pearson (outages); none "
+        "with a single topology]",
         f"{meta['topologies']} topologies x {meta['n_agents']} agents; "
         f"POA containment {f['poa.containment_fraction']:.4f}, "
         f"{f['poa.time_per_node_s'] * 1e3:.2f} ms per node, "
         f"rejection-sampling acceptance {f['poa.rejection_acceptance_rate']:.2f}, "
-        f"dropped {f['poa.dropped_fraction']:.4f} of the ranges"
+        f"dropped {f['poa.dropped_fraction']:.4f} of the ranges",
     ]
+    ratios = [
+        f"{label.get(m, m)} {_cell(f, f'{ref}_vs_{m}.mean_error_m.ratio')}"
+        for m in meta["methods"]
+        if f"{ref}_vs_{m}.mean_error_m.ratio" in f
+    ]
+    if ratios:
+        out.append(
+            f"mean error of {label.get(ref, ref)} over the other method's (same topologies): "
+            + ", ".join(ratios)
+        )
     for ne in meta["n_edges"]:
         areas = ", ".join(f"{f[f'poa.ne{ne}.area_it{it}_m2']:.0f}" for it in range(1, L + 1))
         out.append(f"mean polygon area N_E={ne} per iteration [m²]: {areas}")
@@ -80,43 +114,80 @@ def summary_lines(results: dict):
         areas = ", ".join(f"{f[f'ellipse.area_it{it}_m2']:.0f}" for it in range(1, L + 1))
         out.append(f"mean ellipse area per iteration [m²]: {areas}")
     for m in meta["sample_methods"]:
-        parts = [f"N_S={ns}: {f[f'{m}.ns{ns}.mean_error_m']:.3f} m" for ns in meta["sample_sweep"]]
+        parts = [
+            f"N_S={ns}: {_cell(f, f'{m}.ns{ns}.mean_error_m')} m" for ns in meta["sample_sweep"]
+        ]
         if parts:
-            out.append(f"{meta['labels'].get(m, m)} mean error vs samples: " + ", ".join(parts))
+            out.append(f"{label.get(m, m)} mean error vs samples: " + ", ".join(parts))
     return out
 
 
+def error_bars(ax, x, figures: dict, names, color) -> bool:
+    """The 95 % intervals of the figures ``names`` (one per ``x``) as error bars on ``ax``;
+    returns whether there was one to draw (a run of one topology has none)."""
+    y = np.array([_finite(figures.get(n)) for n in names])
+    lo = np.array([_finite(figures.get(n + ".ci_low")) for n in names])
+    hi = np.array([_finite(figures.get(n + ".ci_high")) for n in names])
+    ok = np.isfinite(y) & np.isfinite(lo) & np.isfinite(hi)
+    if not ok.any():
+        return False
+    yerr = np.maximum(0.0, [y[ok] - lo[ok], hi[ok] - y[ok]])  # rounding: never negative
+    ax.errorbar(
+        np.asarray(x, dtype=float)[ok], y[ok], yerr=yerr, fmt="none", ecolor=color, capsize=2, lw=1
+    )
+    return True
+
+
+def _finite(x) -> float:
+    return np.nan if x is None else float(x)
+
+
 def plot(results: dict, path) -> None:
-    """Figs. 9–12: polygon area vs iteration, mean error vs iteration, outage, samples."""
-    ser, meta = results["series"], results["meta"]
+    """Figs. 9–12: polygon area vs iteration, mean error vs iteration, outage, samples; the
+    95 % intervals over topologies as bands (areas) and error bars (the mean error after
+    convergence, the outage at ``outage_thresholds_m``)."""
+    f, ser, meta = results["figures"], results["series"], results["meta"]
     fig, ax = new_figure(1, 4, size=(20, 4.6))
     it = ser["poa_iteration"]
+    thr = meta["outage_thresholds_m"]
     for ne in meta["n_edges"]:
-        ax[0].plot(it, ser[f"poa.ne{ne}.area_m2"], "o-", label=f"POA N_E={ne}")
+        (line,) = ax[0].plot(it, ser[f"poa.ne{ne}.area_m2"], "o-", label=f"POA N_E={ne}")
+        names = [f"poa.ne{ne}.area_it{i}_m2" for i in range(1, len(it) + 1)]
+        draw_interval(ax[0], it, f, names, line.get_color())
     if "ellipse.area_m2" in ser:
         ax[0].plot(it, ser["ellipse.area_m2"], "k^--", label="ellipses")
+        names = [f"ellipse.area_it{i}_m2" for i in range(1, len(it) + 1)]
+        draw_interval(ax[0], it, f, names, "k")
     ax[0].set(xlabel="iteration", ylabel="mean area [m²]", yscale="log", title="Fig. 9")
     for m in meta["methods"]:
         label = meta["labels"].get(m, m)
-        ax[1].plot(ser["iteration"], ser[f"{m}.mean_error_m"], "o-", label=label)
-        ax[2].semilogx(ser["outage_threshold_m"], ser[f"{m}.outage"], label=label)
+        (line,) = ax[1].plot(ser["iteration"], ser[f"{m}.mean_error_m"], "o-", label=label)
+        error_bars(ax[1], [len(ser["iteration"])], f, [f"{m}.mean_error_m"], line.get_color())
+        (line,) = ax[2].semilogx(ser["outage_threshold_m"], ser[f"{m}.outage"], label=label)
+        names = [f"{m}.outage_{threshold_name(x)}" for x in thr]
+        error_bars(ax[2], thr, f, names, line.get_color())
     ax[1].set(
         xlabel="iteration", ylabel="mean localization error [m]", yscale="log", title="Fig. 10"
     )
     ax[2].set(xlabel="error threshold [m]", ylabel="outage probability", title="Fig. 11")
     for k, m in enumerate(meta["sample_methods"]):  # the first (POA-NBP) solid, others dashed
         for ns in meta["sample_sweep"]:
-            ax[3].semilogx(
+            (line,) = ax[3].semilogx(
                 ser["outage_threshold_m"],
                 ser[f"{m}.ns{ns}.outage"],
                 "-" if k == 0 else "--",
                 label=f"{meta['labels'].get(m, m)} N_S={ns}",
             )
+            names = [f"{m}.ns{ns}.outage_{threshold_name(x)}" for x in thr]
+            error_bars(ax[3], thr, f, names, line.get_color())
     if "pbp" in meta["methods"]:  # POA-NBP Fig. 12 draws PBP as the reference curve
         ax[3].semilogx(ser["outage_threshold_m"], ser["pbp.outage"], "k:", label="PBP")
     ax[3].set(xlabel="error threshold [m]", ylabel="outage probability", title="Fig. 12")
     for a in ax:
         a.grid(True, which="both", alpha=0.3)
         a.legend(fontsize=7)
-    fig.suptitle(f"{meta['recipe']}: {meta['topologies']} topologies x {meta['n_agents']} agents")
+    fig.suptitle(
+        f"{meta['recipe']}: {meta['topologies']} topologies x {meta['n_agents']} agents"
+        " (bars, bands: 95 % intervals over topologies)"
+    )
     save_figure(fig, path)

@@ -67,11 +67,15 @@ class Pooled:
         with ``den == 0`` contributes nothing but still counts as a unit).
     kind : str
         ``"rmse"``, ``"mean"`` or ``"fraction"`` (see the module).
+    point : float, optional
+        The point value as the experiment computes it over all units' values at once (set by
+        :meth:`at`); None: pooled from ``num`` and ``den``.
     """
 
     num: np.ndarray
     den: np.ndarray
     kind: str = "rmse"
+    point: float | None = None
 
     def __post_init__(self):
         num = np.asarray(self.num, dtype=np.float64).ravel()
@@ -105,6 +109,22 @@ class Pooled:
         flags = [np.asarray(f, dtype=bool).ravel() for f in flags_per_unit]
         return cls([int(f.sum()) for f in flags], [f.size for f in flags], "fraction")
 
+    def at(self, point) -> Pooled:
+        """This figure with the point value ``point``: the same number computed over every
+        unit's values at once (a different order of additions, so it may differ from the
+        pooled sums in the last bits). An error unless ``point`` equals the pooled value to
+        1e-12 (both NaN included), so a figure cannot come from other units than its
+        interval.
+
+        >>> Pooled.mean([[0.1, 0.2], [0.3]]).at(0.2).value
+        0.2
+        """
+        point, pooled = float(point), _combine(self.num, self.den, self.kind)
+        same = math.isclose(point, pooled, rel_tol=1e-12, abs_tol=1e-300)
+        if not (same or (math.isnan(point) and math.isnan(pooled))):
+            raise ValidationError("Pooled.point", point, f"the pooled value {pooled!r}")
+        return Pooled(self.num, self.den, self.kind, point)
+
     @property
     def n_units(self) -> int:
         """Number of units."""
@@ -112,7 +132,9 @@ class Pooled:
 
     @property
     def value(self) -> float:
-        """The pooled figure (NaN when no unit counts)."""
+        """The pooled figure (NaN when no unit counts), or the :meth:`at` point."""
+        if self.point is not None:
+            return float(self.point)
         return _combine(self.num, self.den, self.kind)
 
 
@@ -142,9 +164,15 @@ def _ratio(a, b):
 
 def _combine(num, den, kind, axis=-1):
     with np.errstate(divide="ignore", invalid="ignore"):
-        x = np.sum(num, axis=axis) / np.sum(den, axis=axis)
+        x = np.divide(np.sum(num, axis=axis), np.sum(den, axis=axis))
         x = np.sqrt(x) if kind == "rmse" else x
     return float(x) if np.ndim(x) == 0 else x
+
+
+def _divide(a, b):
+    """``a / b`` elementwise, NaN/inf instead of an exception where ``b`` is 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.divide(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
 
 
 def _stream(seed: int, name: str) -> np.random.Generator:
@@ -209,8 +237,7 @@ def paired_interval(c: Paired, *, seed: int = 0, name: str = "") -> tuple[float,
     a, b = c.a, c.b
 
     def ratio(na, da, nb, db, axis=-1):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return _combine(na, da, a.kind, axis) / _combine(nb, db, b.kind, axis)
+        return _divide(_combine(na, da, a.kind, axis), _combine(nb, db, b.kind, axis))
 
     if not (np.any(a.den > 0) and np.any(b.den > 0)):
         return math.nan, math.nan
@@ -270,10 +297,9 @@ def ratio_interval(
 
     def ratio(i, j, axis=-1):
         i, j = i.astype(np.intp), j.astype(np.intp)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return _combine(a.num[i], a.den[i], a.kind, axis) / _combine(
-                b.num[j], b.den[j], b.kind, axis
-            )
+        return _divide(
+            _combine(a.num[i], a.den[i], a.kind, axis), _combine(b.num[j], b.den[j], b.kind, axis)
+        )
 
     return _bootstrap_samples(
         (np.arange(a.n_units, dtype=float), np.arange(b.n_units, dtype=float)),

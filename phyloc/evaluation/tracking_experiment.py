@@ -88,6 +88,19 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
     ``sage.<s>.range_rmse_m``, ``sage.<s>.valid_fraction``, ``sage.<s>.sigma_m``   (``"sage"``
                                      only) SAGE range RMSE over valid links, fraction of valid
                                      links, mean σ given to the trackers
+    ``<a>_vs_<m>.<s>.k<k>.rmse_p_m.ratio``, ``<a>_vs_<m>.<s>.rmse_p_all_m.ratio``   the first
+                                     method ``<a>`` of ``experiment.methods`` over each other
+                                     one ``<m>``: the ratio of their position RMSEs on the same
+                                     runs (below 1 favours ``<a>``; with ``method_runs``, over
+                                     the runs both ran)
+
+95 % intervals (the unit is a run, :mod:`phyloc.evaluation.statistics`): every RMSE figure
+(``k<k>.rmse_*``, ``rmse_p_all_m``, ``sage.<s>.range_rmse_m``) and the mean ``sage.<s>.sigma_m``
+have ``<name>.ci_low`` / ``<name>.ci_high`` (bootstrap over runs) and their per-run values in
+the series ``<name>.units``; the fractions (``outage_<x>m``, ``sage.<s>.valid_fraction``) have
+Clopper–Pearson intervals; every ``…_vs_….ratio`` has the paired bootstrap's interval
+(``.ratio.ci_low`` / ``.ratio.ci_high``). The PCRLBs are computed from the same trajectories and
+carry none, nor do ``rmse_over_pcrlb*``, the timings and the memory figures.
 
 Series: ``k`` (1 … K); ``<m>.<s>.rmse_p_m`` / ``rmse_v_m_s`` / ``rmse_a_m_s2`` and
 ``pcrlb.<s>.p_m`` / ``v_m_s`` / ``a_m_s2`` (and ``pcrlb_cond.*``) per step;
@@ -129,6 +142,7 @@ from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.methods import method_plan as plan_methods
 from phyloc.evaluation.range_scenarios import flow_example
 from phyloc.evaluation.sections import RangingSpec, scenario_specs
+from phyloc.evaluation.statistics import Paired, Pooled
 from phyloc.evaluation.tracking_figures import (
     OUTAGE_GRID_M,
     UNITS,
@@ -369,9 +383,42 @@ def _task(payload, seed_seq):
     return out
 
 
+def pooled_at(p: Pooled, point) -> Pooled:
+    """``p`` with the point value computed over every unit's values at once
+    (:meth:`~phyloc.evaluation.statistics.Pooled.at`)."""
+    return p.at(point)
+
+
+def _comparisons(figures, parts, methods, tok, report_steps):
+    """Paired ratios of the position RMSE (at the report steps and over the whole trajectory)
+    over the same runs: the first method against every other (``<first>_vs_<m>``; a ratio
+    below 1 favours the first). With ``experiment.method_runs`` the ratio is over the runs
+    both methods ran (then not the ratio of the two written figures)."""
+    a = methods[0]
+    names = [f"k{k}.rmse_p_m" for k in report_steps] + ["rmse_p_all_m"]
+    for b in methods[1:]:
+        both = [p for p in parts if f"{a}|e_p" in p and f"{b}|e_p" in p]
+        same = all((f"{a}|e_p" in p) == (f"{b}|e_p" in p) for p in parts)
+        for name in names:
+            if same:
+                pa, pb = figures[f"{a}.{tok}.{name}"], figures[f"{b}.{tok}.{name}"]
+            else:
+                pa, pb = (_rmse_p_units(both, m, name) for m in (a, b))
+            figures[f"{a}_vs_{b}.{tok}.{name}"] = Paired(pa, pb)
+
+
+def _rmse_p_units(parts, m, name) -> Pooled:
+    """The position RMSE ``name`` (``k<k>.rmse_p_m`` or ``rmse_p_all_m``) of method ``m`` over
+    the runs ``parts``."""
+    if name == "rmse_p_all_m":
+        return Pooled.rmse([p[f"{m}|e_p"] for p in parts])
+    k = int(name.split(".")[0][1:])
+    return Pooled.rmse([p[f"{m}|e_p"][k - 1] for p in parts])
+
+
 def _aggregate(keys, results, exp):
     K = exp.n_steps
-    figures: dict[str, float] = {}
+    figures: dict[str, object] = {}
     series: dict[str, object] = {
         "k": np.arange(1, K + 1),
         "outage_threshold_m": OUTAGE_GRID_M,
@@ -397,13 +444,25 @@ def _aggregate(keys, results, exp):
             for k in exp.report_steps:
                 figures[f"pcrlb_cond_one_range.{tok}.k{k}.{UNITS[b]}"] = float(cond_one[b][k - 1])
         if exp.measurements == "sage":
-            n_valid = sum(p["sage"]["n_valid"] for p in parts)
-            sq = sum(p["sage"]["sq_err_sum"] for p in parts)
-            figures[f"sage.{tok}.range_rmse_m"] = math.sqrt(sq / n_valid) if n_valid else math.nan
-            figures[f"sage.{tok}.valid_fraction"] = n_valid / max(
-                sum(p["sage"]["n_links"] for p in parts), 1
+            info = [p["sage"] for p in parts]
+            n_valid = sum(i["n_valid"] for i in info)
+            sq = sum(i["sq_err_sum"] for i in info)
+            figures[f"sage.{tok}.range_rmse_m"] = pooled_at(
+                Pooled([i["sq_err_sum"] for i in info], [i["n_valid"] for i in info], "rmse"),
+                math.sqrt(sq / n_valid) if n_valid else math.nan,
             )
-            figures[f"sage.{tok}.sigma_m"] = float(np.mean([p["sage"]["sigma_m"] for p in parts]))
+            n_links = sum(i["n_links"] for i in info)
+            valid = n_valid / max(n_links, 1)  # no links at all: 0
+            figures[f"sage.{tok}.valid_fraction"] = (
+                pooled_at(
+                    Pooled([i["n_valid"] for i in info], [i["n_links"] for i in info], "fraction"),
+                    valid,
+                )
+                if n_links
+                else valid
+            )
+            sigma = [i["sigma_m"] for i in info]
+            figures[f"sage.{tok}.sigma_m"] = pooled_at(Pooled.mean(sigma), np.mean(sigma))
         for m in exp.methods:
             base = f"{m}.{tok}"
             m_parts = [p for p in parts if f"{m}|e_p" in p]  # experiment.method_runs
@@ -417,22 +476,26 @@ def _aggregate(keys, results, exp):
                 e = np.concatenate([p[f"{m}|e_{b}"] for p in m_parts], axis=1)  # [K, runs·agents]
                 rmse = np.sqrt(np.mean(e**2, axis=1))
                 series[f"{base}.rmse_{UNITS[b]}"] = rmse
-                for k in exp.report_steps:
-                    figures[f"{base}.k{k}.rmse_{UNITS[b]}"] = float(rmse[k - 1])
+                for k in exp.report_steps:  # per run: its agents' errors at step k
+                    figures[f"{base}.k{k}.rmse_{UNITS[b]}"] = pooled_at(
+                        Pooled.rmse([p[f"{m}|e_{b}"][k - 1] for p in m_parts]), rmse[k - 1]
+                    )
             ep = np.concatenate([p[f"{m}|e_p"] for p in m_parts], axis=1)
-            for k in exp.report_steps:
-                figures[f"{base}.k{k}.rmse_over_pcrlb"] = float(
-                    figures[f"{base}.k{k}.rmse_p_m"] / m_bound["p"][k - 1]
-                )
-                figures[f"{base}.k{k}.rmse_over_pcrlb_cond"] = float(
-                    figures[f"{base}.k{k}.rmse_p_m"] / m_cond["p"][k - 1]
-                )
-            figures[f"{base}.rmse_p_all_m"] = float(np.sqrt(np.mean(ep**2)))
+            for k in exp.report_steps:  # over bounds of the same trajectories: no interval
+                rmse_k = figures[f"{base}.k{k}.rmse_p_m"].value
+                figures[f"{base}.k{k}.rmse_over_pcrlb"] = float(rmse_k / m_bound["p"][k - 1])
+                figures[f"{base}.k{k}.rmse_over_pcrlb_cond"] = float(rmse_k / m_cond["p"][k - 1])
+            figures[f"{base}.rmse_p_all_m"] = pooled_at(
+                Pooled.rmse([p[f"{m}|e_p"] for p in m_parts]), np.sqrt(np.mean(ep**2))
+            )
             for k in exp.outage_steps:
                 ek = ep[k - 1]
                 series[f"{base}.k{k}.outage"] = np.mean(ek[:, None] > OUTAGE_GRID_M, axis=0)
                 for x in exp.outage_thresholds_m:
-                    figures[f"{base}.k{k}.outage_{threshold_name(x)}"] = float(np.mean(ek > x))
+                    figures[f"{base}.k{k}.outage_{threshold_name(x)}"] = pooled_at(
+                        Pooled.fraction([p[f"{m}|e_p"][k - 1] > x for p in m_parts]),
+                        np.mean(ek > x),
+                    )
             series[f"{base}.error_cf"] = np.mean(ep.reshape(-1)[:, None] <= OUTAGE_GRID_M, axis=0)
             figures[f"{base}.step_s"] = float(
                 np.median(np.concatenate([p[f"{m}|step_s"] for p in m_parts]))
@@ -443,6 +506,7 @@ def _aggregate(keys, results, exp):
             floats = m_parts[0][f"{m}|floats"]
             if not np.isnan(floats):  # NaN: exchanges no beliefs (edh)
                 figures[f"{base}.floats_per_link_iteration"] = floats
+        _comparisons(figures, parts, exp.methods, tok, exp.report_steps)
         if "sirbp" in exp.methods and "pfbp" in exp.methods:
             figures[f"sirbp_over_pfbp.{tok}.step_ratio"] = (
                 figures[f"sirbp.{tok}.step_s"] / figures[f"pfbp.{tok}.step_s"]

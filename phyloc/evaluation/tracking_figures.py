@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from phyloc.reporting import new_figure, save_figure
+from phyloc.reporting import new_figure, save_figure, with_interval
 
 UNITS = {"p": "p_m", "v": "v_m_s", "a": "a_m_s2"}
 OUTAGE_GRID_M = np.logspace(-2, 1.5, 141)
@@ -21,6 +21,7 @@ TIMING_SUFFIXES = (".step_s", ".agent_s", ".step_ratio")
 
 
 def threshold_name(x: float) -> str:
+    """A threshold [m] as it is written in figure names: ``1`` → ``1m``, ``0.1`` → ``0p1m``."""
     return f"{x:g}".replace(".", "p") + "m"
 
 
@@ -45,7 +46,8 @@ def summary_headers(results: dict):
 
 
 def summary_rows(results: dict):
-    """Position RMSE at the report steps, RMSE/PCRLB at the last one, time per step."""
+    """Position RMSE at the report steps (with its 95 % interval over runs when the run has
+    one), RMSE/PCRLB at the last one, time per step."""
     f, meta = results["figures"], results["meta"]
     steps = meta["report_steps"]
     rows = []
@@ -56,7 +58,7 @@ def summary_rows(results: dict):
                 (
                     tok,
                     m,
-                    *[f[f"{base}.k{k}.rmse_p_m"] for k in steps],
+                    *[with_interval(f, f"{base}.k{k}.rmse_p_m") for k in steps],
                     f[f"{base}.k{steps[-1]}.rmse_over_pcrlb"] if steps else None,
                     f[f"{base}.k{steps[-1]}.rmse_over_pcrlb_cond"] if steps else None,
                     f[f"{base}.step_s"],
@@ -71,13 +73,21 @@ def summary_rows(results: dict):
 
 
 def summary_lines(results: dict):
-    """Outage probabilities and the SIR-BP/PF-BP time ratio."""
+    """Outage probabilities, the paired RMSE ratios of the first method over the others and
+    the SIR-BP/PF-BP time ratio."""
     f, meta = results["figures"], results["meta"]
     out = [
         f"{meta['runs']} runs x {meta['n_steps']} steps, {meta['measurements']} measurements; "
-        f"times: {meta['timing']}"
+        f"times: {meta['timing']} [95 % interval over runs]"
     ]
+    first, others = meta["methods"][0], meta["methods"][1:]
     for tok in meta["scenarios"]:
+        ratios = [(m, with_interval(f, f"{first}_vs_{m}.{tok}.rmse_p_all_m.ratio")) for m in others]
+        if ratios and all(r is not None for _, r in ratios):
+            out.append(
+                f"{tok}: RMSE_p over the trajectory, {first} / other on the same runs: "
+                + "; ".join(f"{m} {_cell(r)}" for m, r in ratios)
+            )
         for k in meta["outage_steps"]:
             parts = []
             for m in meta["methods"]:
@@ -108,6 +118,26 @@ def summary_lines(results: dict):
     return out
 
 
+def _cell(x) -> str:
+    """A figure or a ``with_interval`` cell as text."""
+    return x if isinstance(x, str) else f"{x:.3g}"
+
+
+def error_bars(ax, x, figures: dict, names, color) -> bool:
+    """Error bars of the 95 % intervals of the figures ``names`` (one per ``x``) at their
+    values; returns whether there was one to draw (runs of a single unit have none)."""
+    val = np.array([figures.get(n, np.nan) for n in names], dtype=float)
+    lo = np.array([figures.get(n + ".ci_low", np.nan) for n in names], dtype=float)
+    hi = np.array([figures.get(n + ".ci_high", np.nan) for n in names], dtype=float)
+    ok = np.isfinite(val) & np.isfinite(lo) & np.isfinite(hi)
+    if not ok.any():
+        return False
+    yerr = np.maximum([val[ok] - lo[ok], hi[ok] - val[ok]], 0.0)
+    x = np.asarray(x, dtype=float)[ok]
+    ax.errorbar(x, val[ok], yerr=yerr, fmt="none", ecolor=color, capsize=2, lw=0.8)
+    return True
+
+
 def _plot_example(fig, ax, ser, tok) -> None:
     """PF-BP Fig. 3: the first run's true trajectories (x–y), each point coloured by the number
     of anchors the agent ranges to at that step; anchors black, start points red."""
@@ -127,8 +157,9 @@ def _plot_example(fig, ax, ser, tok) -> None:
 
 def plot(results: dict, path) -> None:
     """RMSE of p, v, a versus k with the PCRLB (Fig. 4, 7) and outage curves (Fig. 6), per
-    scenario (columns), from results only."""
-    ser, meta = results["series"], results["meta"]
+    scenario (columns), from results only; error bars: the 95 % intervals over runs of the
+    figures at the report steps and outage thresholds."""
+    f, ser, meta = results["figures"], results["series"], results["meta"]
     toks = list(meta["scenarios"])
     blocks = meta["blocks"]
     n_rows = len(blocks) + 2
@@ -144,6 +175,9 @@ def plot(results: dict, path) -> None:
                     k, ser[f"{m}.{tok}.rmse_{UNITS[b]}"], "--" if reg else "-", color=f"C{i}",
                     label=m,
                 )  # fmt: skip
+                steps = meta["report_steps"]
+                names = [f"{m}.{tok}.k{s}.rmse_{UNITS[b]}" for s in steps]
+                error_bars(ax, steps, f, names, f"C{i}")
             ax.semilogy(k, ser[f"pcrlb.{tok}.{UNITS[b]}"], "k--", label="PCRLB")
             ax.semilogy(k, ser[f"pcrlb_cond.{tok}.{UNITS[b]}"], "k:", label="PCRLB (cond.)")
             ax.set_ylabel(ylabel[b])
@@ -163,6 +197,9 @@ def plot(results: dict, path) -> None:
                     color=f"C{i}",
                     label=f"{m} k={ko}",
                 )
+                thr = meta["outage_thresholds_m"]
+                names = [f"{m}.{tok}.k{ko}.outage_{threshold_name(x)}" for x in thr]
+                error_bars(ax, thr, f, names, f"C{i}")
         ax.set_xlabel("position error threshold [m]")
         ax.set_ylabel("outage probability")
         ax.grid(True, which="both", alpha=0.3)
@@ -170,7 +207,8 @@ def plot(results: dict, path) -> None:
         _plot_example(fig, axes[-1, j], ser, tok)
     fast = " (fast)" if meta.get("fast") else ""
     sep = "\n" if len(toks) == 1 else " — "  # one column: the title on two lines
-    fig.suptitle(f"Cooperative tracking vs PCRLB{sep}{meta['recipe']}{fast}")
+    bars = "\n(bars: 95 % intervals over runs)"
+    fig.suptitle(f"Cooperative tracking vs PCRLB{sep}{meta['recipe']}{fast}{bars}")
     save_figure(fig, path)
     if "memory_agents" in ser:
         _plot_memory(results, Path(path).with_name(f"{Path(path).stem}_memory.png"))
