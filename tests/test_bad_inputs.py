@@ -80,6 +80,8 @@ EVALUATE_RECIPES = [
         "n_iterations",
     ),
     ("zero-prior-std", LOCALIZATION + "prior_std_m = 0.0\n", "prior_std_m"),
+    ("word-prior-std", LOCALIZATION + 'prior_std_m = "wide"\n', "prior_std_m"),
+    ("bool-prior-std", LOCALIZATION + "prior_std_m = true\n", "prior_std_m"),
     ("zero-outlier-bound", LOCALIZATION + "outlier_nats = 0.0\n", "outlier_nats"),
     ("negative-model-error", LOCALIZATION + "model_error_m = -1.0\n", "model_error_m"),
     (

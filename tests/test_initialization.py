@@ -665,3 +665,56 @@ def test_several_robust_scales_hold_where_one_folds_the_network():
             )
             ok[key] += framework_distance_rmse(sol.positions, P) < 1.0
     assert ok["multi"] >= 10 and ok["multi"] > ok[5.0]
+
+
+def test_start_scale_is_the_robust_residual_scale_per_node(rng):
+    """Gaussian residuals of std s on every pair: the per-node scale estimates s (MAD·1.4826);
+    a few large NLOS-like biases on a node's links barely move it; a node without a pair is
+    inf; the floor holds."""
+    from phyloc.localization.initialization import start_scale
+
+    n, s = 40, 0.3
+    X = rng.uniform(0, 100, (n, 2))
+    i, j = np.triu_indices(n, 1)
+    d = np.linalg.norm(X[i] - X[j], axis=1) + s * rng.standard_normal(i.size)
+    biased = rng.random(i.size) < 0.1
+    d[biased] += rng.exponential(20.0, biased.sum())
+    lk = np.column_stack([i, j])
+    scale = start_scale(X, lk, d)
+    assert np.all(np.abs(np.median(scale) / s - 1) < 0.15)
+    # brute force of node 0: its pairs' absolute residuals
+    mine = (i == 0) | (j == 0)
+    expect = 1.482602218505602 * np.median(
+        np.abs(d[mine] - np.linalg.norm(X[i[mine]] - X[j[mine]], axis=1))
+    )
+    assert scale[0] == pytest.approx(expect)
+    # "min" combines the two directions: a longer reverse range changes nothing
+    both = start_scale(X, np.vstack([lk, lk[:, ::-1]]), np.concatenate([d, d + 5.0]))
+    np.testing.assert_allclose(both, scale)
+    X2 = np.vstack([X, [[500.0, 500.0]]])
+    lone = start_scale(X2, lk, d, floor_m=0.5)
+    assert np.isinf(lone[-1]) and np.all(lone[:-1] >= 0.5)
+    exact = start_scale(X, lk, np.linalg.norm(X[i] - X[j], axis=1), floor_m=0.05)
+    np.testing.assert_allclose(exact, 0.05)
+
+
+def test_start_scale_as_a_position_std_is_the_crb_form():
+    """A node with k neighbours evenly around it in 2-D: J = (k/2)·I, so the position std is
+    the range scale times sqrt(tr(J⁻¹)/2) = sqrt(2/k); with collinear neighbours J is singular
+    (inf)."""
+    from phyloc.localization.initialization import start_scale
+
+    k = 8
+    ang = 2 * np.pi * np.arange(k) / k
+    X = np.vstack([[0.0, 0.0], 10 * np.column_stack([np.cos(ang), np.sin(ang)])])
+    lk = np.column_stack([np.zeros(k, int), np.arange(1, k + 1)])
+    r = 10.0 + np.array([0.1, -0.1, 0.2, -0.2, 0.1, -0.1, 0.2, -0.2])
+    rng_scale = start_scale(X, lk, r)[0]
+    assert rng_scale == pytest.approx(1.482602218505602 * 0.15)
+    pos = start_scale(X, lk, r, position=True)
+    assert pos[0] == pytest.approx(rng_scale * np.sqrt(2.0 / k))
+    assert np.all(np.isinf(pos[1:]))  # one neighbour each: a direction is undetermined
+    line = np.array([[0.0, 0.0], [5.0, 0.0], [10.0, 0.0]])
+    assert np.isinf(
+        start_scale(line, np.array([[0, 1], [0, 2]]), np.array([5.1, 10.0]), position=True)[0]
+    )

@@ -38,11 +38,18 @@ from phyloc.localization import (
     gaussian_priors,
     informed_centers,
 )
+from phyloc.localization.initialization import start_scale
 from phyloc.network.rigidity import determined_pairs
 from phyloc.phy.correlation import correlation_tables
 from phyloc.ranging import estimate
 from phyloc.ranging.estimators import ORACLES, nlos_rejected
 from phyloc.ranging.nlos import energy_concentration
+
+#: Smallest per-agent prior std of ``prior_std_m = "start"`` [m] (the filter's default
+#: covariance floor, :class:`~phyloc.localization.DPFOptions`).
+START_PRIOR_FLOOR_M = 0.05
+#: Prior std of an agent the start cannot place (no measured pair) with ``"start"`` [m].
+START_PRIOR_FALLBACK_M = 10.0
 
 
 def link_tables(real, system, beta: float) -> list:
@@ -180,6 +187,17 @@ def start_prior(init, net, links, corr, lspec, Q, rng):
             sol = coarse_positions(*args, invalid_weight=UNDETECTED_WEIGHT, **kw)
         centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
         undetermined = sol.undetermined[agents]
+        if std == "start":  # each agent's width: the start's own accuracy estimate
+            scale = start_scale(
+                sol.positions,
+                links,
+                corr.range_m,
+                valid=corr.valid,
+                combine=lspec.init_pair_range,
+                floor_m=START_PRIOR_FLOOR_M,
+                position=True,
+            )[agents]
+            std = np.where(np.isfinite(scale), scale, START_PRIOR_FALLBACK_M)
     X = gaussian_priors(centers, std, Q, rng)
     return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label), centers, undetermined
 

@@ -168,7 +168,13 @@ PRIOR_KEYS = (
 class LocalizationSpec:
     """``[localization]``: the methods' options and the experiment's priors.
 
-    ``prior_std_m`` std of the truth-free Gaussian priors around the coarse solution [m];
+    ``prior_std_m`` std of the truth-free Gaussian priors around the coarse solution [m], or
+    ``"start"`` (the default): per agent, the start's own accuracy estimate
+    (:func:`~phyloc.localization.initialization.start_scale` with ``position=True``: the
+    robust scale of the agent's range residuals against the start, as a position std through
+    the CRB form of its measured directions), at least
+    :data:`~phyloc.evaluation.front_end.START_PRIOR_FLOOR_M`; agents with no measured pair get
+    :data:`~phyloc.evaluation.front_end.START_PRIOR_FALLBACK_M`);
     ``informed_std_m`` σ0 of the informed start [m]; ``gauge_extent_m`` half-width of the
     uniform gauge priors [m]; ``init_pair_range`` (``"min"``, or ``"mean"``) how the
     truth-free start combines the two directions' correlation ranges of a pair and
@@ -195,7 +201,7 @@ class LocalizationSpec:
     """
 
     options: dict = field(default_factory=dict)
-    prior_std_m: float = 10.0
+    prior_std_m: float | str = "start"
     informed_std_m: float = 10.0
     gauge_extent_m: float = 150.0
     method_options: dict = field(default_factory=dict)
@@ -207,7 +213,11 @@ class LocalizationSpec:
     los_min_concentration: float = 0.6
 
     def __post_init__(self):
-        v.positive("localization.prior_std_m", self.prior_std_m)
+        std = self.prior_std_m
+        if std != "start" and (isinstance(std, bool) or not isinstance(std, int | float)):
+            raise ValidationError("localization.prior_std_m", std, 'a std > 0 [m], or "start"')
+        if std != "start":
+            v.positive("localization.prior_std_m", std)
         v.choice("localization.init_pair_range", self.init_pair_range, PAIR_COMBINE)
         raw = self.init_robust_scale_m
         scales = tuple(
@@ -245,7 +255,8 @@ class LocalizationSpec:
         scale = own.get("init_robust_scale_m")
         if isinstance(scale, int | float) and not isinstance(scale, bool):
             own["init_robust_scale_m"] = [scale]  # one scale, written as a number
-        v.check_types(cls, own, "localization")
+        # prior_std_m: a number or "start", checked by __post_init__
+        v.check_types(cls, {k: x for k, x in own.items() if k != "prior_std_m"}, "localization")
         sub = {k: d.pop(k) for k in list(d) if isinstance(d[k], dict)}
         return cls(options=d, method_options=sub, **own)
 

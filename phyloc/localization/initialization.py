@@ -380,6 +380,83 @@ class CoarseSolution:
     undetermined: np.ndarray | None = None
 
 
+#: Consistency factor of the median absolute deviation for Gaussian data (MAD·1.4826 = σ).
+MAD_TO_STD = 1.482602218505602
+
+
+def start_scale(
+    positions, links, ranges, *, valid=None, combine="min", floor_m=0.0, position=False
+):
+    """Each node's truth-free accuracy scale of a coarse solution: the robust scale of its own
+    measured ranges' residuals against the solution.
+
+    For node ``u`` and its measured pairs ``(u, v)`` (the two directions combined as in
+    :func:`coarse_positions`): ``r_uv = δ_uv − ‖x_u − x_v‖`` and
+    ``σ_u = max(1.4826 · median_v |r_uv|, floor_m)`` — the median absolute residual, a
+    standard deviation for Gaussian residuals, which NLOS-biased outliers barely move. It is
+    not divided by the number of links: range errors of neighbouring links share their
+    multipath and the start's own bias, so σ_u is the scale of the ranges that placed ``u``,
+    not a CRB. A node without a measured pair gets ``inf``.
+
+    Parameters
+    ----------
+    positions : [n_nodes, dim] float64
+        The coarse solution [m] (:attr:`CoarseSolution.positions`).
+    links, ranges, valid, combine
+        As :func:`coarse_positions` (``valid=None``: every finite range).
+    floor_m : float
+        Smallest scale returned [m], >= 0.
+    position : bool
+        Scale the range residual scale to a position std: ``σ_u · sqrt(tr(J_u⁻¹)/dim)`` with
+        ``J_u = Σ_v e_uv e_uvᵀ`` (unit vectors to the measured neighbours at the solution), the
+        position CRB of ranges of std σ_u (``inf`` where ``J_u`` is singular).
+
+    Returns
+    -------
+    [n_nodes] float64
+        σ_u [m].
+
+    Examples
+    --------
+    >>> x = np.array([[0.0, 0.0], [3.0, 0.0], [0.0, 4.0]])
+    >>> lk = np.array([[0, 1], [1, 0], [0, 2], [1, 2]])
+    >>> start_scale(x, lk, np.array([3.2, 3.1, 4.0, 5.0])).round(4).tolist()
+    [0.0741, 0.0741, 0.0]
+    """
+    X = np.asarray(positions, dtype=np.float64)
+    n = X.shape[0]
+    lk, r, ok, _ = _link_ranges(links, ranges, n, valid, combine, 0.0)
+    floor = v.positive("floor_m", floor_m, allow_zero=True)
+    g = pair_graph(lk, r, ok, n, combine)
+    res = np.abs(g.delta - np.linalg.norm(X[g.i] - X[g.j], axis=1))
+    node = np.concatenate([g.i, g.j])
+    res2 = np.concatenate([res, res])
+    order = np.lexsort((res2, node))
+    node, res2 = node[order], res2[order]
+    out = np.full(n, np.inf)
+    starts = np.searchsorted(node, np.arange(n + 1))
+    for u in range(n):
+        a, b = starts[u], starts[u + 1]
+        if b > a:
+            out[u] = MAD_TO_STD * float(np.median(res2[a:b]))
+    if position:
+        dim = X.shape[1]
+        e = X[g.j] - X[g.i]
+        e /= np.maximum(np.linalg.norm(e, axis=1), 1e-12)[:, None]
+        outer = e[:, :, None] * e[:, None, :]
+        J = np.zeros((n, dim, dim))
+        np.add.at(J, g.i, outer)
+        np.add.at(J, g.j, outer)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            det_ok = np.linalg.matrix_rank(J) == dim
+            tr = np.full(n, np.inf)
+            tr[det_ok] = np.trace(np.linalg.inv(J[det_ok]), axis1=1, axis2=2)
+        out = np.where(
+            np.isfinite(tr), out * np.sqrt(np.where(np.isfinite(tr), tr, 0) / dim), np.inf
+        )
+    return np.where(np.isfinite(out), np.maximum(out, floor), out)
+
+
 def _affine_rank(P: np.ndarray) -> int:
     if P.shape[0] < 2:
         return 0
