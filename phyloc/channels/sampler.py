@@ -42,6 +42,12 @@ Exponential model (DiPNet §IV-A, Appendix III): ``L = 1 + Poisson(L̄ − 1)`` 
 scatter power; LOS: direct path with the fixed ratio K; NLOS: bias as above.
 AWGN: one direct path.
 
+Field model (:mod:`phyloc.channels.field`, LOS only): the free-space direct path, the ground
+reflection (Fresnel coefficient of the ground, fixed phase relative to the direct path, so the
+pair interferes as in the two-ray model), ``K_s`` specular paths of metallic structures with
+uniform excess delays and ``N_d`` diffuse rays with exponential excess delays; no shadowing.
+The path loss is ``−10·log10 Σ_l |a_l|²`` of the link's path amplitudes.
+
 Paths of a link are sorted by delay (the LOS path first at a tie). The random streams are
 consumed in a fixed order, so a draw depends only on the seed, the scenario and the batch.
 
@@ -66,10 +72,17 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc._validate import from_table
+from phyloc.channels.field import (
+    fresnel_reflection,
+    ground_permittivity,
+    ground_reflection_geometry,
+)
+from phyloc.channels.pathloss import D_FAR_FIELD_M
 from phyloc.channels.scenario import (
     CONDITIONS,
     AwgnCondition,
     ExponentialCondition,
+    FieldCondition,
     Scenario,
     Winner2Condition,
     load_scenario,
@@ -106,10 +119,12 @@ class ChannelDraw:
         ``P_tx − PL − SF`` [W] = ``Σ_l |α_l|²``.
     delay_spread_s : [n_links], float64
         The large-scale delay spread drawn for the link [s] (WINNER II step 4; exponential
-        model: ``excess_delay_mean_s``; AWGN: 0). Not the rms spread of ``paths``.
+        model: ``excess_delay_mean_s``; field model: the diffuse ``delay_spread_s``; AWGN: 0).
+        Not the rms spread of ``paths``.
     k_factor_db : [n_links], float64
-        Ricean K-factor [dB] of LOS links (exponential model: the fixed ratio; AWGN: +inf);
-        NaN for NLOS links, which have no direct path.
+        Ricean K-factor [dB] of LOS links (exponential model: the fixed ratio; field model:
+        direct-path power over the power of all other paths, the ground reflection included;
+        AWGN: +inf); NaN for NLOS links, which have no direct path.
     distances_m : [n_links], float64
         Link distances [m].
     scenario : str
@@ -198,7 +213,8 @@ def draw_links(
         Mean NLOS bias [s], >= 0; default: the scenario file's value (0.3 µs, DiPNet §V-A).
     h_tx_m, h_rx_m : float or [n_links] float64
         Antenna heights [m], > 0 (default 1.5 m, device to device). The path-loss laws use
-        ``h_BS = max`` and ``h_MS = min`` of the two.
+        ``h_BS = max`` and ``h_MS = min`` of the two; the field model's ground reflection uses
+        both (its path length ``sqrt(d² + (h_tx + h_rx)²)``).
 
     Returns
     -------
@@ -252,10 +268,14 @@ def draw_links(
         if idx.size == 0:
             continue
         par = scn.params(cond)
-        par.pathloss.check_heights(h_bs[idx], h_ms[idx])
-        pl[idx], sf_std[idx] = par.pathloss.evaluate(d[idx], fc, h_bs[idx], h_ms[idx])
+        if isinstance(par, FieldCondition):  # path loss from the paths themselves
+            res = _draw_field(par, d[idx], fc, h_tx[idx], h_rx[idx], rng)
+            pl[idx] = res["pl_db"]
+        else:
+            par.pathloss.check_heights(h_bs[idx], h_ms[idx])
+            pl[idx], sf_std[idx] = par.pathloss.evaluate(d[idx], fc, h_bs[idx], h_ms[idx])
+            res = _DRAWERS[type(par)](par, sf_std[idx], rng)
         mean_b = par.nlos_bias_mean_s if nlos_bias_mean_s is None else nlos_bias_mean_s
-        res = _DRAWERS[type(par)](par, sf_std[idx], rng)
         sf[idx], ds[idx], k_db[idx] = res["sf_db"], res["ds_s"], res["k_db"]
         if cond == "nlos" and mean_b > 0:
             bias[idx] = rng.exponential(mean_b, idx.size)
@@ -266,6 +286,7 @@ def draw_links(
     np.cumsum(counts, out=offsets[1:])
     rel = np.empty(offsets[-1])
     frac = np.empty(offsets[-1])
+    fixed_phases = []
     for idx, res in chunks:
         c = res["counts"]
         local = np.zeros(idx.size + 1, dtype=np.int64)
@@ -274,9 +295,15 @@ def draw_links(
         pos = offsets[idx][owner] + (np.arange(local[-1]) - local[owner])
         rel[pos] = res["delays"]
         frac[pos] = res["fractions"]
+        if "phase_rel" in res:
+            fixed_phases.append((pos, offsets[idx][owner], res["phase_rel"]))
     link = np.repeat(np.arange(n), counts)
     p_rx = system.received_power_w(pl + sf) if n else np.zeros(0)
     phase = rng.uniform(0.0, 2.0 * math.pi, offsets[-1])
+    for pos, first, prel in fixed_phases:
+        # field model: phases fixed relative to the link's first path (the direct path)
+        keep = np.isfinite(prel)
+        phase[pos[keep]] = phase[first[keep]] + prel[keep]
     gains = np.sqrt(frac * p_rx[link]) * np.exp(1j * phase)
     delays = (d / C0 + bias)[link] + rel
     return ChannelDraw(
@@ -466,6 +493,62 @@ def _draw_awgn(p: AwgnCondition, sf_std: np.ndarray, rng) -> dict:
         "counts": np.ones(n, dtype=np.int64),
         "delays": np.zeros(n),
         "fractions": np.ones(n),
+    }
+
+
+def _draw_field(
+    p: FieldCondition, d: np.ndarray, fc: float, h_tx: np.ndarray, h_rx: np.ndarray, rng
+) -> dict:
+    """Field model (:mod:`phyloc.channels.field`): direct path, ground reflection, specular
+    paths of structures, diffuse rays; returns path-power fractions and the path loss [dB]
+    ``−10·log10 Σ_l |a_l|²`` (no shadowing: the two-ray interference is the fading)."""
+    n = d.size
+    lam = C0 / fc
+    k = 2.0 * math.pi / lam
+    friis = lam / (4.0 * math.pi)
+    a_dir = friis / np.maximum(d, D_FAR_FIELD_M)
+    length, excess, psi = ground_reflection_geometry(d, h_tx, h_rx)
+    eta = ground_permittivity(
+        fc, p.permittivity_a, p.permittivity_b, p.conductivity_c_s_m, p.conductivity_d
+    )
+    gamma = fresnel_reflection(eta, psi, p.polarization)
+    ks, nd = p.scatterer_count, p.diffuse_ray_count
+    lo, hi = p.scatterer_excess_delay_s
+    tau_s = rng.uniform(lo, hi, (n, ks))
+    tau_d = rng.exponential(p.diffuse_delay_spread_s, (n, nd))
+    n_paths = 2 + ks + nd
+    tau = np.empty((n, n_paths))
+    amp2 = np.empty((n, n_paths))
+    prel = np.full((n, n_paths), math.nan)
+    tau[:, 0] = 0.0
+    amp2[:, 0] = a_dir**2
+    prel[:, 0] = 0.0
+    tau[:, 1] = excess / C0
+    amp2[:, 1] = (np.abs(gamma) * friis / length) ** 2
+    prel[:, 1] = np.angle(gamma) - k * excess
+    loss = 10.0 ** (-p.scatterer_reflection_loss_db / 10.0)
+    tau[:, 2 : 2 + ks] = tau_s
+    amp2[:, 2 : 2 + ks] = loss * (friis / (d[:, None] + C0 * tau_s)) ** 2
+    tau[:, 2 + ks :] = tau_d
+    if nd:
+        ratio = 10.0 ** (p.diffuse_power_ratio_db / 10.0)
+        amp2[:, 2 + ks :] = (ratio / nd) * (a_dir**2)[:, None]
+    order = np.argsort(tau, axis=1, kind="stable")  # the direct path (τ = 0) stays first
+    tau = np.take_along_axis(tau, order, axis=1)
+    amp2 = np.take_along_axis(amp2, order, axis=1)
+    prel = np.take_along_axis(prel, order, axis=1)
+    total = amp2.sum(axis=1)
+    with np.errstate(divide="ignore"):
+        k_db = 10.0 * np.log10(amp2[:, 0] / amp2[:, 1:].sum(axis=1))
+    return {
+        "pl_db": -10.0 * np.log10(total),
+        "sf_db": np.zeros(n),
+        "ds_s": np.full(n, p.diffuse_delay_spread_s),
+        "k_db": k_db,
+        "counts": np.full(n, n_paths, dtype=np.int64),
+        "delays": tau.ravel(),
+        "fractions": (amp2 / total[:, None]).ravel(),
+        "phase_rel": prel.ravel(),
     }
 
 

@@ -2,7 +2,7 @@
 
 A scenario file (schema ``"phyloc.channel.v1"``) holds metadata, the carrier-frequency range,
 the LOS-probability law and one parameter table per propagation condition, ``[los]`` and/or
-``[nlos]`` (file layout and key list: ``channels/README.md``). Three models exist:
+``[nlos]`` (file layout and key list: ``channels/README.md``). Four models exist:
 
 ``winner2``
     WINNER II generic model (D1.1.2 Part I, Sec. 4.2): path loss + shadowing, log-normal delay
@@ -14,6 +14,10 @@ the LOS-probability law and one parameter table per propagation condition, ``[lo
     LOS-to-scatter power ratio, NLOS bias ``b ~ Exp``.
 ``awgn``
     A single LOS path with free-space loss (DiPNet §V-A benchmark).
+``field``
+    An open field with physically stated paths (:mod:`phyloc.channels.field`): the free-space
+    direct path, the ground reflection with the Fresnel coefficient of the ground (two-ray),
+    specular paths of metallic structures and an exponential diffuse tail. LOS only.
 
 Names. Shipped files are found with ``importlib.resources.files("phyloc.scenarios")``. A file
 ``<base>_los.toml`` / ``<base>_nlos.toml`` provides the names ``<base>_los`` / ``<base>_nlos``
@@ -49,7 +53,7 @@ from phyloc.channels.pathloss import LosProbability, PathLoss
 from phyloc.errors import ValidationError
 
 SCHEMA = "phyloc.channel.v1"
-MODELS = ("winner2", "exponential", "awgn")
+MODELS = ("winner2", "exponential", "awgn", "field")
 CONDITIONS = ("los", "nlos")
 
 #: Default mean NLOS bias [s]: DiPNet §V-A (GREAT ray tracing, urban).
@@ -116,6 +120,28 @@ def _exponential_spec(condition: str) -> dict:
     else:
         spec["nlos_bias_mean_s"] = _BIAS
     return spec
+
+
+_FIELD_SPEC = {
+    "ground": {
+        "polarization": s.Choice(("vertical", "horizontal")),
+        "permittivity_a": s.Num(1.0, 100.0),
+        "permittivity_b": s.Num(-2.0, 2.0),
+        "conductivity_c_s_m": s.Num(0.0, 100.0),
+        "conductivity_d": s.Num(-3.0, 3.0),
+    },
+    "scatterers": {
+        "count": s.Num(0, 100, integer=True),
+        "excess_delay_min_s": s.Num(0.0, 1.0e-5),
+        "excess_delay_max_s": s.Num(0.0, 1.0e-5),
+        "reflection_loss_db": s.Num(0.0, 100.0),
+    },
+    "diffuse": {
+        "ray_count": s.Num(0, 1000, integer=True),
+        "delay_spread_s": s.Num(0.0, 1.0e-5, lo_open=True),
+        "power_ratio_db": s.Num(-100.0, 30.0),
+    },
+}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -218,6 +244,56 @@ class AwgnCondition:
 
 
 @dataclass(frozen=True, eq=False)
+class FieldCondition:
+    """Parameters of the ``field`` model (LOS only; equations in :mod:`phyloc.channels.field`).
+
+    Attributes
+    ----------
+    condition : {"los"}
+    polarization : {"vertical", "horizontal"}
+        Polarization of both antennas, which selects the Fresnel coefficient of the ground.
+    permittivity_a, permittivity_b : float
+        Relative permittivity of the ground ``ε_r = a·(f / 1 GHz)^b``.
+    conductivity_c_s_m, conductivity_d : float
+        Conductivity of the ground ``σ = c·(f / 1 GHz)^d`` [S/m].
+    scatterer_count : int
+        Specular paths of metallic structures per link, ``K_s``.
+    scatterer_excess_delay_s : (float, float)
+        Their excess delays are uniform on this interval [s].
+    scatterer_reflection_loss_db : float
+        Reflection loss of a structure [dB]; the path's amplitude is
+        ``10^(−loss/20)·λ/(4π L)`` with its unfolded length ``L = d + c0·τ_excess``.
+    diffuse_ray_count : int
+        Diffuse rays per link, ``N_d``.
+    diffuse_delay_spread_s : float
+        Mean (= rms spread) of their exponential excess delays [s].
+    diffuse_power_ratio_db : float
+        Total diffuse power relative to the free-space power of the direct path [dB].
+    nlos_bias_mean_s : float
+        Always 0 (no NLOS part).
+    """
+
+    condition: str
+    polarization: str
+    permittivity_a: float
+    permittivity_b: float
+    conductivity_c_s_m: float
+    conductivity_d: float
+    scatterer_count: int
+    scatterer_excess_delay_s: tuple
+    scatterer_reflection_loss_db: float
+    diffuse_ray_count: int
+    diffuse_delay_spread_s: float
+    diffuse_power_ratio_db: float
+    nlos_bias_mean_s: float = 0.0
+
+    @property
+    def paths_per_link(self) -> int:
+        """Paths of one link: direct, ground reflection, scatterers and diffuse rays."""
+        return 2 + self.scatterer_count + self.diffuse_ray_count
+
+
+@dataclass(frozen=True, eq=False)
 class Scenario:
     """A validated channel scenario.
 
@@ -225,7 +301,7 @@ class Scenario:
     ----------
     name : str
         Scenario name (``winner2_c2``, ``winner2_c2_los``, ``awgn``, a user file's name...).
-    model : {"winner2", "exponential", "awgn"}
+    model : {"winner2", "exponential", "awgn", "field"}
     los_probability : LosProbability
         P_LOS(d) (WINNER II D1.1.2 Table 4-7).
     los, nlos : condition parameters or None
@@ -310,9 +386,11 @@ def _base_name(name: str) -> str:
 def _parse_condition(model: str, condition: str, table, where: str):
     if not isinstance(table, dict):
         raise ValidationError(where, table, "must be a table")
+    if model in ("awgn", "field") and condition != "los":
+        raise ValidationError(where, "[nlos]", f"the {model} model has a [los] table only")
+    if model == "field":
+        return _parse_field(table, where)
     if model == "awgn":
-        if condition != "los":
-            raise ValidationError(where, "[nlos]", "the awgn model has a [los] table only")
         spec = {"pathloss": s.Raw()}
     elif model == "exponential":
         spec = _exponential_spec(condition)
@@ -389,6 +467,32 @@ def _parse_condition(model: str, condition: str, table, where: str):
         subcluster_offsets_s=offs,
         subcluster_fractions=fracs,
         nlos_bias_mean_s=vals.get("nlos_bias_mean_s", 0.0),
+    )
+
+
+def _parse_field(table: dict, where: str) -> FieldCondition:
+    vals = s.parse(table, _FIELD_SPEC, where)
+    g, sc, df = vals["ground"], vals["scatterers"], vals["diffuse"]
+    lo, hi = sc["excess_delay_min_s"], sc["excess_delay_max_s"]
+    if hi < lo:
+        raise ValidationError(
+            f"{where}.scatterers.excess_delay_max_s",
+            hi,
+            f"must be >= excess_delay_min_s = {lo:g}",
+        )
+    return FieldCondition(
+        condition="los",
+        polarization=g["polarization"],
+        permittivity_a=g["permittivity_a"],
+        permittivity_b=g["permittivity_b"],
+        conductivity_c_s_m=g["conductivity_c_s_m"],
+        conductivity_d=g["conductivity_d"],
+        scatterer_count=sc["count"],
+        scatterer_excess_delay_s=(lo, hi),
+        scatterer_reflection_loss_db=sc["reflection_loss_db"],
+        diffuse_ray_count=df["ray_count"],
+        diffuse_delay_spread_s=df["delay_spread_s"],
+        diffuse_power_ratio_db=df["power_ratio_db"],
     )
 
 

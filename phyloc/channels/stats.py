@@ -20,6 +20,10 @@ public interface; a figure is omitted when its condition has no links in the dra
                                (includes the NLOS bias)
 ``nlos_bias_mean_s``           mean NLOS bias over NLOS links [s]
 ``distance_mean_m``            mean link distance [m]
+``carrier_gain_db_median``     field model: median over links of the narrowband power at the
+                               carrier, ``|Σ_l α_l|²``, relative to the free-space power
+                               ``P_tx·(λ/(4π d))²`` [dB] (the two-ray fading)
+``carrier_gain_db_p10``        its 10th percentile [dB]
 =============================  ===============================================================
 
 Each figure with a table value has a twin ``<name>_table``. Table values: DS and K from
@@ -47,10 +51,12 @@ from phyloc.channels.sampler import ChannelDraw, draw_links
 from phyloc.channels.scenario import (
     AwgnCondition,
     ExponentialCondition,
+    FieldCondition,
     Winner2Condition,
     load_scenario,
 )
 from phyloc.errors import ValidationError
+from phyloc.phy.system import C0, OFDMSystem
 from phyloc.reporting import new_figure, save_figure
 
 
@@ -73,6 +79,8 @@ def _expected_paths(par) -> float:
         return par.mean_path_count + (par.condition == "los")
     if isinstance(par, AwgnCondition):
         return 1.0
+    if isinstance(par, FieldCondition):
+        return float(par.paths_per_link)
     return math.nan
 
 
@@ -161,6 +169,8 @@ def channel_stats(
                     f"log10 rms delay spread of paths [s] mean, {cond.upper()}",
                     np.log10(rms[ok]).mean(),
                 )
+        if isinstance(par, FieldCondition):
+            _field_figures(put, draw, mask, rms, system)
         sf = draw.shadowing_db[mask]
         put(
             f"sf_std_db_{cond}",
@@ -209,6 +219,31 @@ def channel_stats(
     if png_path is not None:
         plot_power_delay_profiles(draw, png_path)
     return {"figures": fig, "series": series, "table": rows, "draw": draw}
+
+
+def _field_figures(put, draw: ChannelDraw, mask, rms, system) -> None:
+    """Realized K-factor, rms delay spread and narrowband carrier gain of field-model links."""
+    k = draw.k_factor_db[mask]
+    put("k_factor_db_mean", "K-factor [dB] mean (direct / other paths)", k.mean())
+    put("k_factor_db_std", "K-factor [dB] std", k.std(ddof=1) if k.size > 1 else 0.0)
+    ok = mask & (rms > 0)
+    if ok.any():
+        put(
+            "rms_ds_log10_mean_los",
+            "log10 rms delay spread of paths [s] mean, LOS",
+            np.log10(rms[ok]).mean(),
+        )
+    system = OFDMSystem() if system is None else system
+    lam = C0 / system.carrier_frequency_hz
+    coherent = np.abs(np.add.reduceat(draw.paths.gains, draw.paths.offsets[:-1])) ** 2
+    free = system.tx_power_w * (lam / (4.0 * math.pi * draw.distances_m)) ** 2
+    gain_db = 10.0 * np.log10(coherent[mask] / free[mask])
+    put("carrier_gain_db_median", "carrier power / free space [dB] median", np.median(gain_db))
+    put(
+        "carrier_gain_db_p10",
+        "carrier power / free space [dB] 10th pct",
+        np.percentile(gain_db, 10),
+    )
 
 
 def plot_power_delay_profiles(draw: ChannelDraw, path_png, n_examples: int = 6) -> Path:

@@ -38,7 +38,7 @@ References
 ----------
 DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
 P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
-Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020 (the claims of the first ledger).
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 TOML v1.0.0, https://toml.io/en/v1.0.0 (the ledger's format).
 """
 
