@@ -718,3 +718,28 @@ def test_start_scale_as_a_position_std_is_the_crb_form():
     assert np.isinf(
         start_scale(line, np.array([[0, 1], [0, 2]]), np.array([5.1, 10.0]), position=True)[0]
     )
+
+
+def test_start_prior_width_is_capped_where_the_directions_leave_a_node_undetermined():
+    """An agent measured only by two neighbours nearly in line with it: its CRB-form scale is
+    far above 10 m, and the "start" prior width caps it at START_PRIOR_FALLBACK_M; a node
+    without a measured pair gets the same; the others keep their narrow widths."""
+    from phyloc.evaluation.front_end import (
+        START_PRIOR_FALLBACK_M,
+        START_PRIOR_FLOOR_M,
+        start_prior_std,
+    )
+    from phyloc.localization.initialization import start_scale
+
+    P = np.array([[0, 0], [40, 0], [20, 30], [0, 50], [45, 45], [80.0, 0.05], [500.0, 500.0]])
+    pairs = [(i, j) for i in range(5) for j in range(5) if i != j]
+    pairs += [(5, 0), (0, 5), (5, 1), (1, 5)]
+    lk = np.array(pairs)
+    r = np.linalg.norm(P[lk[:, 0]] - P[lk[:, 1]], axis=1)
+    r += 0.2 * np.random.default_rng(1).standard_normal(len(lk))
+    scale = start_scale(P, lk, r, position=True, floor_m=START_PRIOR_FLOOR_M)
+    assert scale[5] > 10 * START_PRIOR_FALLBACK_M and np.isinf(scale[6])
+    std = start_prior_std(P, lk, r, np.ones(len(lk), bool), "min")
+    assert std[5] == std[6] == START_PRIOR_FALLBACK_M
+    np.testing.assert_array_equal(std[:5], scale[:5])
+    assert np.all((std[:5] >= START_PRIOR_FLOOR_M) & (std[:5] < 1.0))

@@ -48,7 +48,8 @@ from phyloc.ranging.nlos import energy_concentration
 #: Smallest per-agent prior std of ``prior_std_m = "start"`` [m] (the filter's default
 #: covariance floor, :class:`~phyloc.localization.DPFOptions`).
 START_PRIOR_FLOOR_M = 0.05
-#: Prior std of an agent the start cannot place (no measured pair) with ``"start"`` [m].
+#: Prior std of an agent the start cannot place (no measured pair, or measured directions that
+#: leave one undetermined) with ``"start"``, and the largest any agent gets [m].
 START_PRIOR_FALLBACK_M = 10.0
 
 
@@ -141,6 +142,26 @@ UNDETECTED_WEIGHT = 1e-3
 detected links leave the truth-free start disconnected."""
 
 
+def start_prior_std(positions, links, ranges, valid, combine) -> np.ndarray:
+    """Per node, the prior std of ``prior_std_m = "start"`` [m]: the start's own accuracy
+    estimate (:func:`~phyloc.localization.initialization.start_scale` as a position std, the
+    network's robust range residual scale through each node's measured directions), between
+    :data:`START_PRIOR_FLOOR_M` and :data:`START_PRIOR_FALLBACK_M` — the upper limit also for
+    a node the start cannot place, or whose measured neighbours lie nearly in line with it
+    (``J_u`` nearly singular: without the limit a 6-agent network gave a prior kilometres
+    wide)."""
+    scale = start_scale(
+        positions,
+        links,
+        ranges,
+        valid=valid,
+        combine=combine,
+        floor_m=START_PRIOR_FLOOR_M,
+        position=True,
+    )
+    return np.minimum(np.where(np.isfinite(scale), scale, np.inf), START_PRIOR_FALLBACK_M)
+
+
 def start_prior(init, net, links, corr, lspec, Q, rng):
     """The prior of one initialization and its centres.
 
@@ -188,16 +209,9 @@ def start_prior(init, net, links, corr, lspec, Q, rng):
         centers, std, label = sol.positions[agents], lspec.prior_std_m, "truth-free"
         undetermined = sol.undetermined[agents]
         if std == "start":  # each agent's width: the start's own accuracy estimate
-            scale = start_scale(
-                sol.positions,
-                links,
-                corr.range_m,
-                valid=corr.valid,
-                combine=lspec.init_pair_range,
-                floor_m=START_PRIOR_FLOOR_M,
-                position=True,
+            std = start_prior_std(
+                sol.positions, links, corr.range_m, corr.valid, lspec.init_pair_range
             )[agents]
-            std = np.where(np.isfinite(scale), scale, START_PRIOR_FALLBACK_M)
     X = gaussian_priors(centers, std, Q, rng)
     return Prior(X, lambda x: gaussian_log_prior(x, centers, std), label), centers, undetermined
 

@@ -173,8 +173,9 @@ class LocalizationSpec:
     (:func:`~phyloc.localization.initialization.start_scale` with ``position=True``: the
     robust scale of the agent's range residuals against the start, as a position std through
     the CRB form of its measured directions), at least
-    :data:`~phyloc.evaluation.front_end.START_PRIOR_FLOOR_M`; agents with no measured pair get
-    :data:`~phyloc.evaluation.front_end.START_PRIOR_FALLBACK_M`);
+    :data:`~phyloc.evaluation.front_end.START_PRIOR_FLOOR_M` and at most
+    :data:`~phyloc.evaluation.front_end.START_PRIOR_FALLBACK_M`, which agents the start cannot
+    place get);
     ``informed_std_m`` σ0 of the informed start [m]; ``gauge_extent_m`` half-width of the
     uniform gauge priors [m]; ``init_pair_range`` (``"min"``, or ``"mean"``) how the
     truth-free start combines the two directions' correlation ranges of a pair and

@@ -407,9 +407,11 @@ def start_scale(
     floor_m : float
         Smallest scale returned [m], >= 0.
     position : bool
-        Scale the range residual scale to a position std: ``σ_u · sqrt(tr(J_u⁻¹)/dim)`` with
-        ``J_u = Σ_v e_uv e_uvᵀ`` (unit vectors to the measured neighbours at the solution), the
-        position CRB of ranges of std σ_u (``inf`` where ``J_u`` is singular).
+        A position std instead: ``σ · sqrt(tr(J_u⁻¹)/dim)`` with ``J_u = Σ_v e_uv e_uvᵀ`` (unit
+        vectors to the measured neighbours at the solution), the position CRB of ranges of std
+        ``σ`` (``inf`` where ``J_u`` is singular). Here ``σ`` is the *network's* robust residual
+        scale (1.4826 · the median absolute residual over every measured pair): a node with
+        only ``dim`` measured pairs fits them exactly, and its own residual scale would be 0.
 
     Returns
     -------
@@ -440,6 +442,9 @@ def start_scale(
         if b > a:
             out[u] = MAD_TO_STD * float(np.median(res2[a:b]))
     if position:
+        out = np.where(
+            np.isfinite(out), MAD_TO_STD * float(np.median(res)) if res.size else 0.0, np.inf
+        )
         dim = X.shape[1]
         e = X[g.j] - X[g.i]
         e /= np.maximum(np.linalg.norm(e, axis=1), 1e-12)[:, None]
@@ -451,9 +456,8 @@ def start_scale(
             det_ok = np.linalg.matrix_rank(J) == dim
             tr = np.full(n, np.inf)
             tr[det_ok] = np.trace(np.linalg.inv(J[det_ok]), axis1=1, axis2=2)
-        out = np.where(
-            np.isfinite(tr), out * np.sqrt(np.where(np.isfinite(tr), tr, 0) / dim), np.inf
-        )
+        ok = np.isfinite(tr) & np.isfinite(out)
+        out = np.where(ok, np.where(ok, out, 0.0) * np.sqrt(np.where(ok, tr, 0.0) / dim), np.inf)
     return np.where(np.isfinite(out), np.maximum(out, floor), out)
 
 
