@@ -192,3 +192,16 @@ def test_the_ledger_matches_the_stored_runs():
         if not r["matches"]
     ]
     assert not flipped, flipped
+
+
+def test_a_damaged_stored_run_is_a_one_line_error(tmp_path, capsys):
+    results, _ = _store(tmp_path)
+    ledger = tmp_path / "claims.toml"
+    ledger.write_text(LEDGER.replace("@V1@", "holds"))
+    (results / "r" / "results.json").write_text('{"figures": [1, 2')
+    assert main(["claims", "--ledger", str(ledger), "--results", str(results)]) != 0
+    err = capsys.readouterr().err
+    assert "cannot be read" in err and "Traceback" not in err
+    (results / "r" / "results.json").write_text("[]")
+    with pytest.raises(PhylocError, match="no figures table"):
+        check_ledger(ledger, results)

@@ -174,7 +174,13 @@ def _results(results_dir: Path, run: str, cache: dict) -> dict:
         path = results_dir / run / "results.json"
         if not path.is_file():
             raise PhylocError(f"stored run {path} not found (the ledger's run = {run!r})")
-        cache[run] = json.loads(path.read_text())
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise PhylocError(f"stored run {path} cannot be read ({exc}); run it again") from None
+        if not isinstance(doc, dict) or not isinstance(doc.get("figures"), dict):
+            raise PhylocError(f"stored run {path} has no figures table; run it again")
+        cache[run] = doc
     return cache[run]
 
 
