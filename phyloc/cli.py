@@ -110,7 +110,7 @@ COMMANDS = [
     ),
     (
         "claims",
-        "the papers' claims with the verdicts their stored runs give at 95 %",
+        "the papers' claims with the verdicts their stored runs give at 95 %%",
         "cmd_claims",
         [
             _arg(

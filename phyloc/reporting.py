@@ -86,14 +86,23 @@ MEASUREMENT_SUFFIXES = ("_s", "_mb", "_exponent")
 exponents): they differ between runs of the same recipe; every other figure is a result of
 the recipe and its seed alone."""
 
+RESULT_SUFFIXES = ("_m_s",)
+"""Endings that look like a time but are results: speeds in m/s (``rmse_v_m_s``)."""
+
 
 def is_measurement(name: str) -> bool:
     """Whether figure ``name`` measures the machine rather than the recipe (a wall time, a
     memory peak, a cost exponent: :data:`MEASUREMENT_SUFFIXES`, or a ``runtime`` figure).
 
+    A speed in m/s (:data:`RESULT_SUFFIXES`) is a result, not a wall time:
+
     >>> is_measurement("dipnet.c2.agents_30.iteration_s"), is_measurement("c2.los_fraction")
     (True, False)
+    >>> is_measurement("edh.scenario1.rmse_v_m_s")
+    False
     """
+    if name.endswith(RESULT_SUFFIXES):
+        return False
     return "runtime" in name or name.endswith(MEASUREMENT_SUFFIXES)
 
 

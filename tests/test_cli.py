@@ -174,6 +174,21 @@ def test_results_json_gets_the_umask_mode_not_0600(tmp_path):
         os.umask(old)
 
 
+def test_every_help_page_prints(capsys):
+    """``phyloc --help`` and every command's ``--help`` print and exit 0 (argparse expands
+    ``%`` in help strings: a bare one breaks the whole page)."""
+    from phyloc.cli import ANALYSES, COMMANDS
+
+    names = [c[0] for c in COMMANDS]
+    pages = [[], *([n] for n in names), *(["analyze", a[0]] for a in ANALYSES)]
+    for argv in pages:
+        with pytest.raises(SystemExit) as stop:
+            main([*argv, "--help"])
+        assert stop.value.code == 0, argv
+        assert "usage: phyloc" in capsys.readouterr().out, argv
+    assert "claims" in names
+
+
 def test_force_help_names_only_outputs_the_command_has(capsys):
     for argv, png in ((["info"], False), (["bench"], False), (["channel-stats"], True)):
         with pytest.raises(SystemExit):
