@@ -25,6 +25,16 @@ def threshold_name(x: float) -> str:
     return f"{x:g}".replace(".", "p") + "m"
 
 
+def range_text(r) -> str:
+    """A communication range [m] for a title: ``None`` (how JSON keeps an infinite range read
+    back from ``results.json``) and ``inf`` are ``∞``.
+
+    >>> range_text(18.0), range_text(float("inf")), range_text(None)
+    ('18 m', '∞', '∞')
+    """
+    return "∞" if r is None or not np.isfinite(r) else f"{float(r):g} m"
+
+
 def is_timing(name: str) -> bool:
     """True for the wall-time figures (the only ones that depend on the machine)."""
     return name.endswith(TIMING_SUFFIXES)
@@ -184,7 +194,7 @@ def plot(results: dict, path) -> None:
             ax.set_xlabel("time step k")
             ax.grid(True, which="both", alpha=0.3)
             if r == 0:
-                ax.set_title(f"{tok} (r_max = {meta['scenarios'][tok]['comm_range_m']:g} m)")
+                ax.set_title(f"{tok} (r_max = {range_text(meta['scenarios'][tok]['comm_range_m'])})")
                 ax.legend(fontsize=7)
         ax = axes[-2, j]
         styles = ("-", "--", ":", "-.")
@@ -265,6 +275,6 @@ def _plot_memory(results: dict, path) -> None:
     ax.set_ylabel("memory of one run [MB] (peak RSS added)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    r = meta["scenarios"][first]["comm_range_m"]
-    ax.set_title(f"{meta['recipe']}: memory vs network size (r_max = {r:g} m)", fontsize=9)
+    r = range_text(meta["scenarios"][first]["comm_range_m"])
+    ax.set_title(f"{meta['recipe']}: memory vs network size (r_max = {r})", fontsize=9)
     save_figure(fig, path)
