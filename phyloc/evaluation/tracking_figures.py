@@ -194,7 +194,9 @@ def plot(results: dict, path) -> None:
             ax.set_xlabel("time step k")
             ax.grid(True, which="both", alpha=0.3)
             if r == 0:
-                ax.set_title(f"{tok} (r_max = {range_text(meta['scenarios'][tok]['comm_range_m'])})")
+                ax.set_title(
+                    f"{tok} (r_max = {range_text(meta['scenarios'][tok]['comm_range_m'])})"
+                )
                 ax.legend(fontsize=7)
         ax = axes[-2, j]
         styles = ("-", "--", ":", "-.")
