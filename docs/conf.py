@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import io
 import os
+import re
 import runpy
 from pathlib import Path
 
@@ -107,46 +108,54 @@ def _rst(text: str) -> str:
     return text.replace("\\", "\\\\").replace("|", "\\|").replace("*", "\\*")
 
 
+def _claims_rows(paper: str, report: list) -> list:
+    """The reST list-table of one paper's claims in ``report``."""
+    rows = [
+        f".. list-table:: {paper}",
+        "   :header-rows: 1",
+        "   :widths: 22 40 10 16 12",
+        "",
+        "   * - claim (where)",
+        "     - statement (our words); check",
+        "     - verdict",
+        "     - value [95 % interval]",
+        "     - stored run",
+    ]
+    for r in (r for r in report if r["paper"] == paper):
+        cells = []
+        for o in r["outcomes"]:
+            if o["exact"]:
+                cells.append(f"{o['value']:.3g} (exact)")
+            else:
+                cells.append(f"{o['value']:.3g} [{o['ci_low']:.3g}, {o['ci_high']:.3g}]")
+        verdict = f"**{r['verdict_now']}**"
+        if not r["matches"]:
+            verdict += f" (ledger: {r['verdict']})"
+        note = f" {_rst(r['note'])}" if r["note"] else ""
+        why = f" Explained by ``{r['explained_by']}``." if r["explained_by"] else ""
+        rows += [
+            f"   * - ``{r['id']}`` ({r['where']})",
+            f"     - {_rst(r['statement'])} ``{r['check']}``.{note}{why}",
+            f"     - {verdict}",
+            f"     - {'; '.join(cells)}",
+            f"     - ``{r['run']}``",
+        ]
+    return [*rows, ""]
+
+
 def _claims_table() -> None:
-    """Write ``_generated/claims.rst``: the claims ledger with every verdict recomputed now
-    from the stored runs (:func:`phyloc.evaluation.claims.check_ledger`)."""
+    """Write ``_generated/claims.rst`` (the whole claims ledger) and one
+    ``_generated/claims_<paper>.rst`` per paper (included by its page), every verdict
+    recomputed now from the stored runs (:func:`phyloc.evaluation.claims.check_ledger`)."""
     from phyloc.evaluation.claims import check_ledger
 
     report = check_ledger(HERE / "claims.toml", HERE / "results")
     rows = []
     for paper in dict.fromkeys(r["paper"] for r in report):
-        rows += [
-            f".. list-table:: {paper}",
-            "   :header-rows: 1",
-            "   :widths: 22 40 10 16 12",
-            "",
-            "   * - claim (where)",
-            "     - statement (our words); check",
-            "     - verdict",
-            "     - value [95 % interval]",
-            "     - stored run",
-        ]
-        for r in (r for r in report if r["paper"] == paper):
-            outs = r["outcomes"]
-            cells = []
-            for o in outs:
-                if o["exact"]:
-                    cells.append(f"{o['value']:.3g} (exact)")
-                else:
-                    cells.append(f"{o['value']:.3g} [{o['ci_low']:.3g}, {o['ci_high']:.3g}]")
-            verdict = f"**{r['verdict_now']}**"
-            if not r["matches"]:
-                verdict += f" (ledger: {r['verdict']})"
-            note = f" {_rst(r['note'])}" if r["note"] else ""
-            why = f" Explained by ``{r['explained_by']}``." if r["explained_by"] else ""
-            rows += [
-                f"   * - ``{r['id']}`` ({r['where']})",
-                f"     - {_rst(r['statement'])} ``{r['check']}``.{note}{why}",
-                f"     - {verdict}",
-                f"     - {'; '.join(cells)}",
-                f"     - ``{r['run']}``",
-            ]
-        rows.append("")
+        table = _claims_rows(paper, report)
+        rows += table
+        slug = re.sub(r"[^a-z0-9]+", "_", paper.lower()).strip("_")
+        _write(f"claims_{slug}.rst", "\n".join(table) + "\n")
     _write("claims.rst", "\n".join(rows) + "\n")
 
 
