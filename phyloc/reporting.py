@@ -90,17 +90,36 @@ RESULT_SUFFIXES = ("_m_s",)
 """Endings that look like a time but are results: speeds in m/s (``rmse_v_m_s``)."""
 
 
+#: Endings the runner appends to a figure's name for its interval and per-unit values
+#: (:func:`phyloc.evaluation.statistics.resolve`).
+INTERVAL_SUFFIXES = (".ci_low", ".ci_high", ".units")
+
+
+def base_figure(name: str) -> str:
+    """The figure an interval bound or a per-unit series belongs to.
+
+    >>> base_figure("pfbp.s1_r18.step_s.ci_low"), base_figure("x.rmse_m")
+    ('pfbp.s1_r18.step_s', 'x.rmse_m')
+    """
+    for suffix in INTERVAL_SUFFIXES:
+        if name.endswith(suffix):
+            return name[: -len(suffix)]
+    return name
+
+
 def is_measurement(name: str) -> bool:
     """Whether figure ``name`` measures the machine rather than the recipe (a wall time, a
-    memory peak, a cost exponent: :data:`MEASUREMENT_SUFFIXES`, or a ``runtime`` figure).
+    memory peak, a cost exponent: :data:`MEASUREMENT_SUFFIXES`, or a ``runtime`` figure),
+    also for its interval bounds and per-unit series (:func:`base_figure`).
 
     A speed in m/s (:data:`RESULT_SUFFIXES`) is a result, not a wall time:
 
     >>> is_measurement("dipnet.c2.agents_30.iteration_s"), is_measurement("c2.los_fraction")
     (True, False)
-    >>> is_measurement("edh.scenario1.rmse_v_m_s")
-    False
+    >>> is_measurement("edh.scenario1.rmse_v_m_s"), is_measurement("pfbp.s1.step_s.ci_high")
+    (False, True)
     """
+    name = base_figure(name)
     if name.endswith(RESULT_SUFFIXES):
         return False
     return "runtime" in name or name.endswith(MEASUREMENT_SUFFIXES)

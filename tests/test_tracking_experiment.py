@@ -70,6 +70,8 @@ def test_pooled_figures_have_intervals_and_one_value_per_run(tiny):
             expected += [f"{m}.s1.k{k}.rmse_{q}" for q in ("p_m", "v_m_s", "a_m_s2")]
         for k in meta["outage_steps"]:
             expected += [f"{m}.s1.k{k}.outage_{x}" for x in ("0p1m", "0p3m", "1m")]
+        expected += [f"{m}.s1.step_s"] + ([f"{m}.s1.agent_s"] if m != "edh" else [])
+    expected.append("s1.anchor_localizable_fraction")
     assert sorted(names) == sorted(expected)
     for n in names:
         u = ser[n + ".units"]
@@ -84,7 +86,12 @@ def test_pooled_figures_have_intervals_and_one_value_per_run(tiny):
         lo, hi = f[n + ".ci_low"], f[n + ".ci_high"]
         assert math.isfinite(lo) and math.isfinite(hi), n
         assert lo <= f[n] * (1 + 1e-12) and f[n] <= hi * (1 + 1e-12), n
-        if ".outage_" in n:
+        if n.endswith(("step_s", "agent_s")):  # per run: its median step time
+            assert u["kind"] == "mean" and den == [1.0] * runs and all(x > 0 for x in num)
+        elif n.endswith("anchor_localizable_fraction"):  # per run: its positions
+            assert u["kind"] == "mean" and den == [K * n_agents] * runs
+            assert all(x == int(x) and 0 <= x <= K * n_agents for x in num)
+        elif ".outage_" in n:
             assert u["kind"] == "fraction" and den == [n_agents] * runs
             assert all(x == int(x) and 0 <= x <= n_agents for x in num)
         elif n.endswith("rmse_p_all_m"):
@@ -216,6 +223,8 @@ def test_same_results_with_one_and_two_workers():
     for n in names:
         assert one["figures"][n] == two["figures"][n], n
     for n, x in one["series"].items():
+        if is_timing(n):  # the per-run wall times of a timing figure: the machine's
+            continue
         if isinstance(x, dict):  # the per-run values of a pooled figure
             assert x.keys() == two["series"][n].keys()
             for key, val in x.items():
@@ -452,3 +461,61 @@ def test_method_runs_limits_one_method_and_leaves_the_others_alone():
     assert f["sirbp.s1.k3.rmse_over_pcrlb_cond"] != pytest.approx(
         f["sirbp.s1.k3.rmse_p_m"] / f["pcrlb_cond.s1.k3.p_m"], rel=1e-9
     )
+
+
+def _localizable_brute(anchors, heard, dim):
+    """Reference: an agent is located by the anchors alone when some dim + 1 of the anchors it
+    hears span the space (a nonzero simplex volume), found by trying every subset."""
+    from itertools import combinations
+
+    idx = np.flatnonzero(heard)
+    for sub in combinations(idx, dim + 1):
+        a = anchors[list(sub)]
+        if abs(np.linalg.det(a[1:] - a[0])) > 1e-6:
+            return True
+    return False
+
+
+def test_anchor_localizable_matches_a_subset_search():
+    """:func:`anchor_localizable` against trying every (dim + 1)-subset of the heard anchors,
+    on random hearing patterns over anchors that include a coplanar group (3-D) and a
+    collinear group (2-D)."""
+    from types import SimpleNamespace
+
+    from phyloc.evaluation.range_scenarios import anchor_localizable
+
+    rng = np.random.default_rng(20261127)
+    for dim, anchors in (
+        (3, np.array([[0, 0, 0], [20, 0, 0], [0, 20, 0], [20, 20, 0], [10, 10, 0], [5, 5, 20]])),
+        (2, np.array([[0, 0], [10, 0], [20, 0], [30, 0], [15, 12]])),
+    ):
+        anchors = anchors.astype(float)
+        K, n_agents = 30, 4
+        heard = rng.random((K, n_agents, len(anchors))) < 0.7
+        z = np.full((K, n_agents, n_agents + len(anchors)), np.nan)
+        z[:, :, n_agents:] = np.where(heard, 5.0, np.nan)
+        sc = SimpleNamespace(
+            anchors=anchors, z=z, n_agents=n_agents, model=SimpleNamespace(dim=dim)
+        )
+        got = anchor_localizable(sc)
+        ref = np.array(
+            [
+                [_localizable_brute(anchors, heard[k, i], dim) for i in range(n_agents)]
+                for k in range(K)
+            ]
+        )
+        assert got.shape == (K, n_agents)
+        assert np.array_equal(got, ref)
+        assert 0 < ref.mean() < 1  # both outcomes occur
+
+
+def test_anchor_figures_count_the_stored_runs(tiny):
+    """``s1.min_anchor_links`` is the fewest anchors any agent measured (the example run's
+    series bounds it from above), and the localizable fraction lies in [0, 1] and is 0 where
+    an agent hears fewer than dim + 1 anchors throughout."""
+    f, ser = tiny["figures"], tiny["series"]
+    example = np.asarray(ser["s1.example_anchor_links"])
+    assert f["s1.min_anchor_links"] <= example.min()
+    assert 0.0 <= f["s1.anchor_localizable_fraction"] <= 1.0
+    if example.max() < 4:
+        assert f["s1.anchor_localizable_fraction"] == 0.0

@@ -41,6 +41,7 @@ from phyloc.localization.tracking import STATE_MODELS, RangeMeasurements, RangeM
 
 __all__ = [
     "RangeScenario",
+    "anchor_localizable",
     "flow_example",
     "network_states",
     "scenario_network_spec",
@@ -129,6 +130,52 @@ def state_errors(result, scenario: RangeScenario) -> dict[str, np.ndarray]:
         e = est[..., b * d : (b + 1) * d] - scenario.states[..., b * d : (b + 1) * d]
         out[name] = np.sqrt(np.mean(np.sum(e * e, axis=-1), axis=-1))
     return out
+
+
+def anchor_localizable(scenario: RangeScenario) -> np.ndarray:
+    """Which agent positions the anchors alone determine (PF-BP Fig. 3): at step ``k`` agent
+    ``i`` measures ranges to at least ``dim + 1`` anchors that are not all on one hyperplane
+    (a plane in 3-D, a line in 2-D), so that its position follows from them without any
+    cooperation (trilateration needs ``dim + 1`` affinely independent anchors).
+
+    Parameters
+    ----------
+    scenario : RangeScenario
+
+    Returns
+    -------
+    [K, n_agents] bool
+
+    Examples
+    --------
+    Four anchors on the floor of a room are one plane: hearing all four does not locate a
+    3-D agent; a fifth on the ceiling does.
+
+    >>> from types import SimpleNamespace
+    >>> floor = [[0, 0, 0], [10, 0, 0], [0, 10, 0], [10, 10, 0]]
+    >>> z = np.full((1, 1, 1 + 5), 1.0); z[0, 0, 0] = np.nan
+    >>> sc = SimpleNamespace(anchors=np.array([*floor, [5, 5, 3]], float), z=z, n_agents=1,
+    ...                      model=SimpleNamespace(dim=3))
+    >>> bool(anchor_localizable(sc)[0, 0])
+    True
+    >>> z[0, 0, -1] = np.nan  # the ceiling anchor out of range
+    >>> bool(anchor_localizable(sc)[0, 0])
+    False
+    """
+    dim = scenario.model.dim
+    anchors = np.asarray(scenario.anchors, dtype=np.float64)
+    heard = np.isfinite(scenario.z[:, :, scenario.n_agents :])  # [K, n_agents, n_anchors]
+    if heard.size == 0:
+        return np.zeros(heard.shape[:2], dtype=bool)
+    patterns, which = np.unique(heard.reshape(-1, heard.shape[-1]), axis=0, return_inverse=True)
+    scale = max(float(np.ptp(anchors)), 1.0)
+    ok = np.zeros(len(patterns), dtype=bool)
+    for j, pat in enumerate(patterns):
+        a = anchors[pat]
+        if len(a) > dim:
+            sv = np.linalg.svd(a[1:] - a[0], compute_uv=False)
+            ok[j] = sv.size >= dim and sv[dim - 1] > 1e-9 * scale
+    return ok[which.reshape(-1)].reshape(heard.shape[:2])
 
 
 def network_states(network, model: RangeModel) -> np.ndarray:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from phyloc.reporting import draw_interval, new_figure, save_figure, with_interval
+from phyloc.reporting import base_figure, draw_interval, new_figure, save_figure, with_interval
 
 #: Suffixes of the wall-time figures.
 TIMING_SUFFIXES = ("_s", "_ratio")
@@ -23,8 +23,9 @@ def threshold_name(x: float) -> str:
 
 
 def is_timing(name: str) -> bool:
-    """True for the wall-time figures (the only ones that depend on the machine)."""
-    return name.endswith(TIMING_SUFFIXES)
+    """True for the wall-time figures (the only ones that depend on the machine) and their
+    interval bounds."""
+    return base_figure(name).endswith(TIMING_SUFFIXES)
 
 
 def summary_headers(results: dict):
@@ -44,8 +45,8 @@ def summary_headers(results: dict):
 
 
 def summary_rows(results: dict):
-    """Accuracy after convergence (with its 95 % interval over topologies when the run has
-    one), iterations and time to convergence per method."""
+    """Accuracy after convergence, iterations and time to convergence per method (each with
+    its 95 % interval over topologies when the run has one)."""
     f, meta = results["figures"], results["meta"]
     tok = f"ns{meta['experiment']['n_samples']}"
     rows = []
@@ -55,9 +56,9 @@ def summary_rows(results: dict):
                 meta["labels"].get(m, m),
                 with_interval(f, f"{m}.mean_error_m"),
                 with_interval(f, f"{m}.rmse_m"),
-                int(f[f"{m}.convergence_iteration"]),
-                f[f"{m}.time_per_node_iteration_s"],
-                f[f"{m}.time_to_convergence_s"],
+                with_interval(f, f"{m}.convergence_iteration"),
+                with_interval(f, f"{m}.time_per_node_iteration_s"),
+                with_interval(f, f"{m}.time_to_convergence_s"),
                 *[
                     with_interval(f, f"{m}.outage_{threshold_name(x)}")
                     for x in meta["outage_thresholds_m"]
@@ -82,14 +83,15 @@ def _cell(figures: dict, name: str) -> str:
 
 
 def summary_lines(results: dict):
-    """What the intervals are, the paired ratios of the mean error, the polygon study and
-    the sample sweep in a few lines."""
+    """What the intervals are, the start time of the methods with a start (PBP, WLS), the
+    paired ratios of the mean error, the polygon study and the sample sweep in a few lines."""
     f, meta = results["figures"], results["meta"]
     L = meta["experiment"]["poa_iterations"]
     label = meta["labels"]
     ref = reference_method(meta["methods"])
     out = [
-        "[95 % interval over topologies: bootstrap (errors), Clopper-Pearson (outages); none "
+        "[95 % interval over topologies: bootstrap (errors, iterations, times), "
+        "Clopper-Pearson (outages); none "
         "with a single topology]",
         f"{meta['topologies']} topologies x {meta['n_agents']} agents; "
         f"POA containment {f['poa.containment_fraction']:.4f}, "
@@ -97,6 +99,14 @@ def summary_lines(results: dict):
         f"rejection-sampling acceptance {f['poa.rejection_acceptance_rate']:.2f}, "
         f"dropped {f['poa.dropped_fraction']:.4f} of the ranges",
     ]
+    starts = [
+        f"{label.get(m, m)} {_cell(f, f'{m}.start_time_per_node_s')} of "
+        f"{_cell(f, f'{m}.time_to_convergence_s')} s"
+        for m in meta["methods"]
+        if f"{m}.start_time_per_node_s" in f
+    ]
+    if starts:
+        out.append("start per node, of the time to convergence: " + ", ".join(starts))
     ratios = [
         f"{label.get(m, m)} {_cell(f, f'{ref}_vs_{m}.mean_error_m.ratio')}"
         for m in meta["methods"]
@@ -181,7 +191,8 @@ def plot(results: dict, path) -> None:
             names = [f"{m}.ns{ns}.outage_{threshold_name(x)}" for x in thr]
             error_bars(ax[3], thr, f, names, line.get_color())
     if "pbp" in meta["methods"]:  # POA-NBP Fig. 12 draws PBP as the reference curve
-        ax[3].semilogx(ser["outage_threshold_m"], ser["pbp.outage"], "k:", label="PBP")
+        pbp = ser.get("pbp.sweep.outage", ser["pbp.outage"])  # the sweep's topologies
+        ax[3].semilogx(ser["outage_threshold_m"], pbp, "k:", label="PBP")
     ax[3].set(xlabel="error threshold [m]", ylabel="outage probability", title="Fig. 12")
     for a in ax:
         a.grid(True, which="both", alpha=0.3)

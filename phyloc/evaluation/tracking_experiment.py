@@ -76,7 +76,8 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
                                      ``experiment.method_runs``; its ratios then use the
                                      bounds of those runs)
     ``<m>.<s>.step_s``               wall time per time step, joint processing [s] (Tables I, II):
-                                     median over all steps of all runs
+                                     each run's median step, averaged over runs (with an
+                                     interval over runs)
     ``<m>.<s>.agent_s``              ... per agent, distributed processing [s] (not for methods
                                      without a distributed form, whose ``agent_s`` is NaN:
                                      ``edh``)
@@ -85,6 +86,12 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
                                      and covariance; PF-BP §VI), from the method's
                                      ``diagnostics`` (not for ``edh``, which exchanges none)
     ``sirbp_over_pfbp.<s>.step_ratio``   ``sirbp.<s>.step_s / pfbp.<s>.step_s``
+    ``<s>.anchor_localizable_fraction``  share of the (run, step, agent) positions whose agent
+                                     measures ranges to ``dim + 1`` anchors not on one
+                                     hyperplane, i.e. is located by the anchors alone
+                                     (:func:`~phyloc.evaluation.range_scenarios.anchor_localizable`;
+                                     PF-BP Fig. 3), with an interval over runs
+    ``<s>.min_anchor_links``         the fewest anchors any agent measured at any step of any run
     ``sage.<s>.range_rmse_m``, ``sage.<s>.valid_fraction``, ``sage.<s>.sigma_m``   (``"sage"``
                                      only) SAGE range RMSE over valid links, fraction of valid
                                      links, mean σ given to the trackers
@@ -140,7 +147,7 @@ from phyloc.channels import ChannelSpec
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.methods import method_plan as plan_methods
-from phyloc.evaluation.range_scenarios import flow_example
+from phyloc.evaluation.range_scenarios import anchor_localizable, flow_example
 from phyloc.evaluation.sections import RangingSpec, scenario_specs
 from phyloc.evaluation.statistics import Paired, Pooled
 from phyloc.evaluation.tracking_figures import (
@@ -433,6 +440,13 @@ def _aggregate(keys, results, exp):
             axis=2
         )
         series[f"{tok}.anchors_m"] = first.anchors
+        # PF-BP Fig. 3 over every run: positions the anchors alone locate, fewest anchor links
+        figures[f"{tok}.anchor_localizable_fraction"] = Pooled.mean(
+            [anchor_localizable(sc).ravel() for sc in scs]
+        )
+        figures[f"{tok}.min_anchor_links"] = int(
+            min(np.isfinite(sc.z[:, :, sc.n_agents :]).sum(axis=2).min() for sc in scs)
+        )
         bound = pcrlb(scs, P0).bounds
         cond = pcrlb(scs, P0, average="bound").bounds
         cond_one = pcrlb(scs, P0, average="bound", pairs="one").bounds
@@ -497,19 +511,21 @@ def _aggregate(keys, results, exp):
                         np.mean(ek > x),
                     )
             series[f"{base}.error_cf"] = np.mean(ep.reshape(-1)[:, None] <= OUTAGE_GRID_M, axis=0)
-            figures[f"{base}.step_s"] = float(
-                np.median(np.concatenate([p[f"{m}|step_s"] for p in m_parts]))
+            # wall times: per run its median step, the figure their mean over runs
+            figures[f"{base}.step_s"] = Pooled.mean(
+                [[np.median(p[f"{m}|step_s"])] for p in m_parts]
             )
-            agent_s = np.concatenate([p[f"{m}|agent_s"] for p in m_parts])
-            if not np.all(np.isnan(agent_s)):  # NaN: no distributed form (edh)
-                figures[f"{base}.agent_s"] = float(np.median(agent_s))
+            if not np.all(np.isnan(m_parts[0][f"{m}|agent_s"])):  # NaN: no distributed form
+                figures[f"{base}.agent_s"] = Pooled.mean(
+                    [[np.median(p[f"{m}|agent_s"])] for p in m_parts]
+                )
             floats = m_parts[0][f"{m}|floats"]
             if not np.isnan(floats):  # NaN: exchanges no beliefs (edh)
                 figures[f"{base}.floats_per_link_iteration"] = floats
         _comparisons(figures, parts, exp.methods, tok, exp.report_steps)
         if "sirbp" in exp.methods and "pfbp" in exp.methods:
             figures[f"sirbp_over_pfbp.{tok}.step_ratio"] = (
-                figures[f"sirbp.{tok}.step_s"] / figures[f"pfbp.{tok}.step_s"]
+                figures[f"sirbp.{tok}.step_s"].value / figures[f"pfbp.{tok}.step_s"].value
             )
     return figures, series
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from phyloc.reporting import new_figure, save_figure, with_interval
+from phyloc.reporting import base_figure, new_figure, save_figure, with_interval
 
 UNITS = {"p": "p_m", "v": "v_m_s", "a": "a_m_s2"}
 OUTAGE_GRID_M = np.logspace(-2, 1.5, 141)
@@ -36,8 +36,9 @@ def range_text(r) -> str:
 
 
 def is_timing(name: str) -> bool:
-    """True for the wall-time figures (the only ones that depend on the machine)."""
-    return name.endswith(TIMING_SUFFIXES)
+    """True for the wall-time figures (the only ones that depend on the machine) and their
+    interval bounds."""
+    return base_figure(name).endswith(TIMING_SUFFIXES)
 
 
 def summary_headers(results: dict):
