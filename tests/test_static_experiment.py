@@ -192,6 +192,8 @@ def test_same_results_with_one_and_two_workers(tiny):
     for n in names:
         assert _same(tiny["figures"][n], two["figures"][n]), n
     for n, x in tiny["series"].items():
+        if static_figures.is_timing(n):  # the per-topology wall times (``<name>.units``)
+            continue
         y = two["series"][n]
         if n.endswith(".units"):  # {"kind", "num", "den"}: the per-topology values
             assert x["kind"] == y["kind"], n
@@ -216,7 +218,8 @@ def test_sample_sweep_topologies_limits_the_sweep_only(tiny):
         load_recipe(TINY.replace("topologies = 2", "topologies = 1")), progress=False
     )
     f = limited["figures"]
-    swept = [n for n in f if n.startswith(("poa_nbp.ns20.", "poa_nbp.ns40."))]
+    swept = [n for n in f if n.startswith(("poa_nbp.ns20.", "poa_nbp.ns40.", "pbp.sweep."))]
+    swept += [n for n in f if n.startswith("poa_nbp_vs_pbp.ns")]  # the sweep against PBP
     assert "poa_nbp.ns20.mean_error_m" in swept
     assert f["poa_nbp.ns20.topologies"] == 1.0 and tiny["figures"]["poa_nbp.ns20.topologies"] == 2
     for n in f:
@@ -323,8 +326,10 @@ def test_pooled_figures_carry_intervals_over_the_topologies(tiny):
     for m in meta["methods"]:
         u = ser[f"{m}.outage_1m.units"]
         assert list(u["den"]) == [30, 30] and all(float(k).is_integer() for k in u["num"])
-        assert not any(k.startswith(f"{m}.convergence_iteration.") for k in f)  # plain
-    assert "poa.time_per_node_s.ci_low" not in f  # wall times are plain
+        assert f"{m}.curve_convergence_iteration.ci_low" not in f  # the pooled curve: plain
+        assert f"{m}.settling_iteration.ci_low" not in f
+    assert "poa.time_per_node_s.ci_low" in f  # wall times: per topology too
+    assert "poa_nbp_vs_wls.time_to_convergence_ratio.ci_low" not in f
     ratios = 0
     for m in meta["methods"]:
         for q in ("mean_error_m", "rmse_m", "outage_1m"):
@@ -412,4 +417,145 @@ def test_pooled_point_values_are_those_of_all_values_at_once():
     r = f["poa_nbp_vs_wls.rmse_m"]
     assert r.value == f["poa_nbp.rmse_m"].value / f["wls.rmse_m"].value
     assert f["poa_nbp_vs_nbp_min_entropy.ns40.outage_1m"].a is f["poa_nbp.ns40.outage_1m"]
-    assert not isinstance(f["poa_nbp.convergence_iteration"], Pooled)
+    assert isinstance(f["poa_nbp.convergence_iteration"], Pooled)
+    assert not isinstance(f["poa_nbp.curve_convergence_iteration"], Pooled)
+    assert not isinstance(f["poa_nbp.settling_iteration"], Pooled)
+
+
+# -- per-topology iteration counts and wall times; PBP over the sweep's topologies -------------
+@pytest.fixture(scope="module")
+def tiny3():
+    """The tiny recipe with 3 topologies, the sample sweep in the first 2 of them."""
+    recipe = TINY.replace("topologies = 2", "topologies = 3\nsample_sweep_topologies = 2")
+    return se.STATIC.run(load_recipe(recipe), progress=False)
+
+
+def _per_topology_names(meta) -> list[tuple[str, int]]:
+    """The figures given one value per topology, or pooled over the sweep's topologies
+    (``pbp.sweep``), with the number of topologies each pools."""
+    n, s = meta["topologies"], meta["sample_sweep_topologies"]
+    names = [("poa.time_per_node_s", n)]
+    for m in meta["methods"]:
+        q = ("convergence_iteration", "time_per_node_iteration_s", "time_to_convergence_s")
+        names += [(f"{m}.{x}", n) for x in q]
+    names += [(f"{m}.start_time_per_node_s", n) for m in ("pbp", "wls")]
+    names += [
+        (f"{m}.ns{ns}.time_per_node_iteration_s", s)
+        for m in meta["sample_methods"]
+        for ns in meta["sample_sweep"]
+    ]
+    return names + [(f"pbp.sweep.{q}", s) for q in ("mean_error_m", "outage_1m")]
+
+
+def _units(res, name) -> tuple[np.ndarray, np.ndarray]:
+    u = res["series"][name + ".units"]
+    return np.asarray(u["num"], dtype=float), np.asarray(u["den"], dtype=float)
+
+
+def test_per_topology_figures_carry_intervals_and_units(tiny3):
+    """Every new figure pooled over topologies has a finite 95 % interval around it and one
+    unit per topology it pools (3, or the sweep's 2); only the methods with a start option
+    have a start time."""
+    f, meta = tiny3["figures"], tiny3["meta"]
+    assert meta["topologies"] == 3 and meta["sample_sweep_topologies"] == 2
+    for name, n_units in _per_topology_names(meta):
+        lo, x, hi = f[name + ".ci_low"], f[name], f[name + ".ci_high"]
+        assert math.isfinite(lo) and math.isfinite(hi), name
+        slack = 1e-12 * abs(x)  # a point value kept as np.mean computed it
+        assert lo - slack <= x <= hi + slack, (name, lo, x, hi)
+        num, den = _units(tiny3, name)
+        assert num.size == den.size == n_units, name
+    for m in ("nbp_aux", "poa_nbp", "nbp_ellipse", "nbp_min_entropy"):
+        assert f"{m}.start_time_per_node_s" not in f
+    assert f["pbp.sweep.topologies"] == 2.0
+
+
+def test_per_topology_units_reproduce_the_figures(tiny3):
+    """One value per topology (denominator 1): each figure is the plain mean of its stored
+    values; the convergence iteration is a whole count in 1..n_iterations in every topology;
+    a topology's time to convergence is its count times its time per node-iteration plus its
+    setup per node — the start for PBP and WLS, the proposal polygons' POA time for POA-NBP,
+    at least 0 for the others — and the start is part of it."""
+    f, meta = tiny3["figures"], tiny3["meta"]
+    for name, _ in _per_topology_names(meta):
+        if name.startswith("pbp.sweep."):
+            continue
+        num, den = _units(tiny3, name)
+        assert tiny3["series"][name + ".units"]["kind"] == "mean" and np.all(den == 1.0), name
+        assert f[name] == pytest.approx(math.fsum(num) / num.size, rel=1e-12), name
+    n_it = meta["experiment"]["n_iterations"]
+    poa_time = _units(tiny3, "poa.time_per_node_s")[0]
+    for m in meta["methods"]:
+        conv = _units(tiny3, f"{m}.convergence_iteration")[0]
+        assert np.all(conv == np.round(conv)) and np.all((conv >= 1) & (conv <= n_it)), m
+        t_it = _units(tiny3, f"{m}.time_per_node_iteration_s")[0]
+        t_conv = _units(tiny3, f"{m}.time_to_convergence_s")[0]
+        setup = {
+            "pbp": _units(tiny3, "pbp.start_time_per_node_s")[0],
+            "wls": _units(tiny3, "wls.start_time_per_node_s")[0],
+            "poa_nbp": poa_time,
+        }.get(m)
+        if setup is None:
+            assert np.all(t_conv >= conv * t_it * (1 - 1e-12)), m
+        else:
+            assert np.all(setup >= 0.0), m
+            np.testing.assert_allclose(t_conv, conv * t_it + setup, rtol=1e-12, err_msg=m)
+            assert np.all(setup <= t_conv), m
+
+
+def test_pbp_sweep_figures_are_pbp_over_the_sweep_topologies(tiny3):
+    """``pbp.sweep.*`` are PBP's figures recomputed from its per-topology units restricted to
+    the sweep's topologies (the first 2 of 3), and the paired ratios of the sweep against PBP
+    are ratios over those same topologies."""
+    f, meta = tiny3["figures"], tiny3["meta"]
+    s = meta["sample_sweep_topologies"]
+    for q in ("mean_error_m", "outage_1m"):
+        num, den = _units(tiny3, f"pbp.{q}")
+        assert num.size == 3
+        sw_num, sw_den = _units(tiny3, f"pbp.sweep.{q}")
+        np.testing.assert_array_equal(sw_num, num[:s])
+        np.testing.assert_array_equal(sw_den, den[:s])
+        assert f[f"pbp.sweep.{q}"] == pytest.approx(num[:s].sum() / den[:s].sum(), rel=1e-12)
+        for ns in meta["sample_sweep"]:
+            key = f"poa_nbp_vs_pbp.ns{ns}.{q}.ratio"
+            assert _units(tiny3, f"poa_nbp.ns{ns}.{q}")[0].size == s
+            if f[f"pbp.sweep.{q}"] == 0:
+                assert key not in f
+            else:
+                assert f[key] == f[f"poa_nbp.ns{ns}.{q}"] / f[f"pbp.sweep.{q}"], key
+    assert tiny3["series"]["pbp.sweep.outage"].shape == se.OUTAGE_GRID_M.shape
+
+
+def test_convergence_is_counted_per_topology():
+    """Three topologies whose mean-error curves converge after 3 (never), 2 and 1 iterations
+    by the paper's rule (5 % or 2 cm): the convergence iteration is their mean, 2, while the
+    curve pooled over all topologies, (10/3, 2, 5/3), never converges (3); a topology's time
+    to convergence is its count times its own time per node-iteration plus its setup."""
+    exp = se.StaticExperimentSpec(
+        topologies=3,
+        n_agents=5,
+        n_edges=(4,),
+        poa_iterations=2,
+        methods=("poa_nbp", "pbp"),
+        n_iterations=3,
+        sample_sweep=(),
+        outage_thresholds_m=(1.0,),
+    )
+    res = _fake_static(exp, 3)
+    curves = ([4.0, 2.0, 1.0], [4.0, 2.0, 2.0], [2.0, 2.0, 2.0])
+    t_it, t_setup = (1e-3, 2e-3, 3e-3), (4e-4, 5e-4, 6e-4)
+    for r, c, t, u in zip(res, curves, t_it, t_setup, strict=True):
+        for m in exp.methods:
+            r[f"{m}|err"] = np.repeat(np.array(c)[:, None], exp.n_agents, axis=1)
+            r[f"{m}|time"], r[f"{m}|t_support"] = t, u
+    f, _ = se._aggregate(res, exp)
+    for m in exp.methods:
+        np.testing.assert_array_equal(f[f"{m}.convergence_iteration"].num, [3.0, 2.0, 1.0])
+        assert f[f"{m}.convergence_iteration"].value == 2.0
+        assert f[f"{m}.curve_convergence_iteration"] == 3.0
+        expected = (3 * 1e-3 + 4e-4 + 2 * 2e-3 + 5e-4 + 1 * 3e-3 + 6e-4) / 3
+        assert f[f"{m}.time_to_convergence_s"].value == pytest.approx(expected, rel=1e-12)
+        assert f[f"{m}.time_per_node_iteration_s"].value == pytest.approx(2e-3, rel=1e-12)
+    assert f["pbp.start_time_per_node_s"].value == pytest.approx(5e-4, rel=1e-12)
+    assert "poa_nbp.start_time_per_node_s" not in f
+    assert not any(k.startswith("pbp.sweep.") for k in f)  # no sweep: no PBP sweep figures

@@ -43,17 +43,24 @@ communication range, one-sided exponential ranging errors of mean 0.38 m, POA-NB
 3. **Samples** (POA-NBP Fig. 12): ``poa_nbp`` and ``nbp_min_entropy`` (or the methods of
    ``sample_methods``) at every ``N_S`` of ``experiment.sample_sweep``.
 
-Convergence is read off the mean-error curve ``e_l`` over all topologies by the paper's rule
-(POA-NBP §V, footnote 5: "convergence is achieved if the average localization error does not change
-notably for successive iterations"): the run has converged after iteration ``l − 1`` for the
-first ``l >= 2`` with ``|e_l − e_{l−1}| <= max(convergence_rel · e_{l−1}, convergence_abs_m)``
-(never: ``n_iterations``). A stricter reading is reported next to it as the *settling*
+Convergence is read by the paper's rule (POA-NBP §V, footnote 5: "convergence is achieved if
+the average localization error does not change notably for successive iterations") in every
+topology, on its own mean-error curve ``e_l`` (mean over its agents): it has converged after
+iteration ``l − 1`` for the first ``l >= 2`` with
+``|e_l − e_{l−1}| <= max(convergence_rel · e_{l−1}, convergence_abs_m)`` (never:
+``n_iterations``); ``<m>.convergence_iteration`` is the mean over topologies of that count. The
+same rule on the mean-error curve over all topologies gives ``<m>.curve_convergence_iteration``
+(one number). A stricter reading of that curve is reported next to it as the *settling*
 iteration: the first iteration from which the curve stays within
 ``max(convergence_rel · e_final, convergence_abs_m)`` of its final value; it counts the slow
 Monte Carlo refinement a particle method keeps making after its curve has flattened.
-The time to convergence per node is the mean time per node and iteration times that number of
-iterations, plus the method's setup time per node (its ``setup_time_per_node_s`` diagnostic:
-the outer-approximation of ``poa_nbp`` and ``nbp_ellipse``, the MDS start of ``pbp``, ``wls``).
+The time to convergence per node of a topology is its mean time per node and iteration times
+its convergence iteration, plus the method's setup time per node (its
+``setup_time_per_node_s`` diagnostic: the outer-approximation of ``poa_nbp`` and
+``nbp_ellipse``, the start of ``pbp`` and ``wls`` — MDS/SMACOF with ``baseline_start = "mds"``,
+0 where the heuristic start is used); ``<m>.time_to_convergence_s`` is its mean over
+topologies, and ``<m>.start_time_per_node_s`` the start's share (methods with a ``start``
+option: ``pbp``, ``wls``), so that the start and the iterations can be told apart.
 Errors "after convergence" are those of the last iteration (``n_iterations`` >= convergence).
 
 Communication and operations: the scenario token ``<s>`` of the overhead figures names the
@@ -96,15 +103,32 @@ with ``p`` for the decimal point)::
     ``<m>.mean_error_m``                average localization error after convergence [m]
                                         (Fig. 10)
     ``<m>.rmse_m``                      RMSE after convergence [m]
-    ``<m>.convergence_iteration``       iterations to convergence, paper's rule (Fig. 10)
-    ``<m>.settling_iteration``          iterations until the curve stays near its final value
-    ``<m>.time_per_node_iteration_s``   mean wall time per node and iteration [s]
-    ``<m>.time_to_convergence_s``       time per node to convergence [s] (Table I, t_conv + t_poly)
+    ``<m>.convergence_iteration``       iterations to convergence, paper's rule, in each
+                                        topology; mean over topologies (Fig. 10)
+    ``<m>.curve_convergence_iteration`` iterations to convergence of the mean-error curve over
+                                        all topologies (paper's rule; one number)
+    ``<m>.settling_iteration``          iterations until that curve stays near its final value
+    ``<m>.time_per_node_iteration_s``   wall time per node and iteration (each topology: the
+                                        mean over its iterations and agent updates); mean over
+                                        topologies [s]
+    ``<m>.time_to_convergence_s``       time per node to convergence (Table I, t_conv + t_poly):
+                                        each topology's ``convergence iteration × time per
+                                        node-iteration + setup time per node``; mean over
+                                        topologies [s]
+    ``<m>.start_time_per_node_s``       the start alone (``setup_time_per_node_s`` of ``pbp``,
+                                        ``wls``: methods with a ``start`` option), per node;
+                                        mean over topologies [s]; part of
+                                        ``time_to_convergence_s``
     ``<m>.outage_<x>m``                 fraction of agents with error > x after convergence
                                         (Fig. 11)
     ``<m>.ns<n>.mean_error_m``, ``<m>.ns<n>.outage_<x>m``, ``<m>.ns<n>.time_per_node_iteration_s``
                                         the sample sweep (Fig. 12)
     ``<m>.ns<n>.topologies``            topologies the sweep ran in (``sample_sweep_topologies``)
+    ``pbp.sweep.mean_error_m``, ``pbp.sweep.outage_<x>m``   PBP's figures (comparison run)
+                                        restricted to the sweep's topologies, so that the sweep
+                                        can be compared with PBP (POA-NBP Fig. 12's reference)
+                                        over the same topologies; ``pbp.sweep.topologies``
+                                        (the methods of :data:`SWEEP_REFERENCES` that run)
     ``poa_nbp_vs_<m>.time_to_convergence_ratio``   ``poa_nbp`` over NBP variant ``<m>``
     ``<a>_vs_<m>.mean_error_m.ratio``, ``.rmse_m.ratio``, ``.outage_<x>m.ratio``
                                         method ``<a>`` over method ``<m>`` on the same
@@ -112,20 +136,32 @@ with ``p`` for the decimal point)::
                                         otherwise the first method; every other ``<m>``;
                                         none where ``<m>``'s figure is 0)
     ``<a>_vs_<m>.ns<n>.mean_error_m.ratio``, ``.ns<n>.outage_<x>m.ratio``   the same in the
-                                        sample sweep (``<a>`` the first of ``sample_methods``)
+                                        sample sweep (``<a>`` the first of ``sample_methods``);
+                                        for ``<m> = pbp`` against ``pbp.sweep.*`` (PBP has
+                                        no N_S: the same figure at every ``<n>``)
 
 Intervals: every figure pooled over topologies — the areas, containment and dropped
-fractions, acceptance rate, overhead means, mean errors, RMSEs and outages (sweep included)
-— has a 95 % interval ``<name>.ci_low`` / ``<name>.ci_high`` (:mod:`phyloc.evaluation.statistics`:
-bootstrap over topologies; fractions and outages: exact binomial interval on the totals) and
-its per-topology values in the series ``<name>.units``; a ratio has
-``<name>.ratio.ci_low`` / ``.ratio.ci_high`` (paired bootstrap over topologies). With a single
-topology the intervals are NaN. Iteration counts (``convergence_iteration``,
-``settling_iteration``), wall times and ``.topologies`` are plain numbers.
+fractions, acceptance rate, overhead means, mean errors, RMSEs and outages (sweep and
+``pbp.sweep`` included), ``convergence_iteration`` and the wall times ``poa.time_per_node_s``,
+``<m>.time_per_node_iteration_s``, ``<m>.time_to_convergence_s``,
+``<m>.start_time_per_node_s`` and ``<m>.ns<n>.time_per_node_iteration_s`` — has a 95 % interval
+``<name>.ci_low`` / ``<name>.ci_high`` (:mod:`phyloc.evaluation.statistics`: bootstrap over
+topologies; fractions and outages: exact binomial interval on the totals) and its per-topology
+values in the series ``<name>.units`` (one unit per topology of the figure: the sweep's figures
+have those of the sweep); a ratio has ``<name>.ratio.ci_low`` / ``.ratio.ci_high`` (paired
+bootstrap over topologies). With a single topology the intervals are NaN. The readings of the
+pooled curve (``curve_convergence_iteration``, ``settling_iteration``), the
+``time_to_convergence_ratio`` figures and ``.topologies`` are plain numbers.
+
+Definitions changed with the per-topology units (values of stored runs before them are not
+comparable): ``<m>.convergence_iteration`` was read off the mean-error curve over all
+topologies (now ``<m>.curve_convergence_iteration``); ``<m>.time_to_convergence_s`` was that
+count times the mean time per node-iteration plus the mean setup time (so also
+``poa_nbp_vs_<m>.time_to_convergence_ratio``). With one topology both are unchanged.
 
 Series: ``iteration``; ``<m>.mean_error_m`` per iteration; ``poa.ne<ne>.area_m2`` and
-``ellipse.area_m2`` per POA iteration; ``outage_threshold_m`` (grid) with ``<m>.outage`` and
-``<m>.ns<n>.outage``.
+``ellipse.area_m2`` per POA iteration; ``outage_threshold_m`` (grid) with ``<m>.outage``,
+``<m>.ns<n>.outage`` and ``pbp.sweep.outage``.
 
 Timings are wall times of this process (with several workers they include contention);
 everything else is identical for a seed whatever the worker count.
@@ -517,7 +553,8 @@ def settling_from_curve(curve, rel: float, abs_m: float) -> int:
 def _aggregate(results, exp: StaticExperimentSpec):
     """Pool the per-topology outputs: a figure pooled over topologies is a
     :class:`~phyloc.evaluation.statistics.Pooled` value (its interval resamples topologies;
-    :func:`_comparisons` adds the paired ratios); iteration counts and wall times are plain."""
+    :func:`_comparisons` adds the paired ratios), so are the convergence iteration and the wall
+    times (one value per topology); the readings of the pooled curve are plain."""
     figures: dict[str, object] = {}
     series: dict[str, object] = {
         "iteration": np.arange(1, exp.n_iterations + 1),
@@ -553,7 +590,7 @@ def _aggregate(results, exp: StaticExperimentSpec):
                 Pooled.mean([a[it] for a in areas]), mean_area[it]
             )
     figures["poa.containment_fraction"] = Pooled.fraction([r["poa|contained"] for r in results])
-    figures["poa.time_per_node_s"] = float(np.mean([r["poa|time_per_node_s"] for r in results]))
+    figures["poa.time_per_node_s"] = _per_topology([r["poa|time_per_node_s"] for r in results])
     accept = [r["poa|acceptance"] for r in results]
     figures["poa.rejection_acceptance_rate"] = _as_computed(
         _mean_units(accept), np.mean(np.concatenate(accept))
@@ -577,15 +614,26 @@ def _aggregate(results, exp: StaticExperimentSpec):
         final = err[-1]
         figures[f"{m}.mean_error_m"] = _as_computed(_mean_units(errs), final.mean())
         figures[f"{m}.rmse_m"] = _as_computed(Pooled.rmse(errs), np.sqrt(np.mean(final**2)))
-        conv = convergence_from_curve(curve, exp.convergence_rel, exp.convergence_abs_m)
-        figures[f"{m}.convergence_iteration"] = float(conv)
+        # per topology: the paper's rule on its own mean-error curve, its times
+        conv = [
+            float(convergence_from_curve(e, exp.convergence_rel, exp.convergence_abs_m))
+            for e in (r[f"{m}|err"].mean(axis=1) for r in results)
+        ]
+        t_it = [r[f"{m}|time"] for r in results]
+        t_sup = [r[f"{m}|t_support"] for r in results]
+        figures[f"{m}.convergence_iteration"] = _per_topology(conv)
+        figures[f"{m}.curve_convergence_iteration"] = float(
+            convergence_from_curve(curve, exp.convergence_rel, exp.convergence_abs_m)
+        )
         figures[f"{m}.settling_iteration"] = float(
             settling_from_curve(curve, exp.convergence_rel, exp.convergence_abs_m)
         )
-        t_it = float(np.mean([r[f"{m}|time"] for r in results]))
-        t_sup = float(np.mean([r[f"{m}|t_support"] for r in results]))
-        figures[f"{m}.time_per_node_iteration_s"] = t_it
-        figures[f"{m}.time_to_convergence_s"] = conv * t_it + t_sup
+        figures[f"{m}.time_per_node_iteration_s"] = _per_topology(t_it)
+        figures[f"{m}.time_to_convergence_s"] = _per_topology(
+            [c * t + u for c, t, u in zip(conv, t_it, t_sup, strict=True)]
+        )
+        if "start" in _fields(REGISTRY[m].options):  # pbp, wls: the start alone
+            figures[f"{m}.start_time_per_node_s"] = _per_topology(t_sup)
         series[f"{m}.outage"] = np.mean(final[:, None] > OUTAGE_GRID_M, axis=0)
         for x in exp.outage_thresholds_m:
             figures[f"{m}.outage_{threshold_name(x)}"] = Pooled.fraction([e > x for e in errs])
@@ -598,8 +646,8 @@ def _aggregate(results, exp: StaticExperimentSpec):
             base = f"{m}.ns{ns}"
             figures[f"{base}.topologies"] = float(len(swept))
             figures[f"{base}.mean_error_m"] = _as_computed(_mean_units(errs), e.mean())
-            figures[f"{base}.time_per_node_iteration_s"] = float(
-                np.mean([r[f"{m}|ns{ns}|time"] for r in swept])
+            figures[f"{base}.time_per_node_iteration_s"] = _per_topology(
+                [r[f"{m}|ns{ns}|time"] for r in swept]
             )
             series[f"{base}.outage"] = np.mean(e[:, None] > OUTAGE_GRID_M, axis=0)
             for x in exp.outage_thresholds_m:
@@ -607,14 +655,42 @@ def _aggregate(results, exp: StaticExperimentSpec):
                     [ei > x for ei in errs]
                 )
             _overhead_figures(figures, base, [r[f"{m}|ns{ns}|overhead"] for r in swept])
+    _sweep_references(figures, series, results, exp)
     if "poa_nbp" in exp.methods:  # POA-NBP Table I: POA-NBP against the other NBP variants
         for m in exp.methods:
             if m != "poa_nbp" and REGISTRY[m].options is REGISTRY["poa_nbp"].options:
                 figures[f"poa_nbp_vs_{m}.time_to_convergence_ratio"] = (
-                    figures["poa_nbp.time_to_convergence_s"] / figures[f"{m}.time_to_convergence_s"]
+                    figures["poa_nbp.time_to_convergence_s"].value
+                    / figures[f"{m}.time_to_convergence_s"].value
                 )
     _comparisons(figures, exp)
     return figures, series
+
+
+#: Methods of the comparison (step 2) whose accuracy figures are also given over the sample
+#: sweep's topologies only, as ``<m>.sweep.*`` (:func:`_sweep_references`): PBP, the reference
+#: curve of POA-NBP Fig. 12, which the sweep does not run.
+SWEEP_REFERENCES = ("pbp",)
+
+
+def _sweep_references(figures, series, results, exp: StaticExperimentSpec) -> None:
+    """The figures of every method of :data:`SWEEP_REFERENCES` that runs, restricted to the
+    topologies of the sample sweep (the first ``exp.sweep_topologies``; none when the sweep
+    does not run): ``<m>.sweep.topologies``, ``<m>.sweep.mean_error_m``,
+    ``<m>.sweep.outage_<x>m`` (units: those topologies, as the sweep's figures) and the
+    series ``<m>.sweep.outage``."""
+    if not (exp.sample_methods and exp.sample_sweep):
+        return
+    swept = results[: exp.sweep_topologies]  # task i is topology i (StaticExperiment.tasks)
+    for m in (m for m in SWEEP_REFERENCES if m in exp.methods):
+        errs = [r[f"{m}|err"][-1] for r in swept]  # after convergence
+        e = np.concatenate(errs)
+        base = f"{m}.sweep"
+        figures[f"{base}.topologies"] = float(len(swept))
+        figures[f"{base}.mean_error_m"] = _as_computed(_mean_units(errs), e.mean())
+        series[f"{base}.outage"] = np.mean(e[:, None] > OUTAGE_GRID_M, axis=0)
+        for x in exp.outage_thresholds_m:
+            figures[f"{base}.outage_{threshold_name(x)}"] = Pooled.fraction([ei > x for ei in errs])
 
 
 #: The figures of a method compared by a paired ratio (:func:`_comparisons`), besides the
@@ -627,8 +703,10 @@ def _comparisons(figures, exp: StaticExperimentSpec) -> None:
     :func:`~phyloc.evaluation.static_figures.reference_method` ``a`` against every other
     method ``m``, ``<a>_vs_<m>.mean_error_m``, ``.rmse_m`` and ``.outage_<x>m``; in the sample
     sweep the first of ``sample_methods`` against the others at every ``N_S``,
-    ``<a>_vs_<m>.ns<n>.mean_error_m`` and ``.ns<n>.outage_<x>m``. A ratio below 1 favours
-    ``a``; there is none where ``m``'s figure is 0 (an outage no agent had)."""
+    ``<a>_vs_<m>.ns<n>.mean_error_m`` and ``.ns<n>.outage_<x>m``, and against the
+    ``<m>.sweep`` figures of :data:`SWEEP_REFERENCES` (PBP, the same at every ``N_S``) under
+    the same names. A ratio below 1 favours ``a``; there is none where ``m``'s figure is 0
+    (an outage no agent had)."""
     outages = [f"outage_{threshold_name(x)}" for x in exp.outage_thresholds_m]
     a = reference_method(exp.methods)
     pairs = [
@@ -644,6 +722,13 @@ def _comparisons(figures, exp: StaticExperimentSpec) -> None:
         for ns in exp.sample_sweep
         for q in ("mean_error_m", *outages)
     ]
+    pairs += [  # the sweep against PBP (Fig. 12's reference) over the sweep's topologies
+        (f"{a}_vs_{m}", f"{a}.ns{ns}.{q}", f"{m}.sweep.{q}", f"ns{ns}.{q}")
+        for m in SWEEP_REFERENCES
+        if f"{m}.sweep.mean_error_m" in figures
+        for ns in exp.sample_sweep
+        for q in ("mean_error_m", *outages)
+    ]
     for head, x, y, q in pairs:
         if figures[y].value != 0:
             figures[f"{head}.{q}"] = Paired(figures[x], figures[y])
@@ -655,6 +740,14 @@ def _mean_units(arrays) -> Pooled:
     the mean of the pooled values was)."""
     arrs = [np.asarray(a, dtype=np.float64).ravel() for a in arrays]
     return Pooled([float(np.sum(a)) for a in arrs], [a.size for a in arrs], "mean")
+
+
+def _per_topology(values) -> Pooled:
+    """One number per topology (an iteration count, a wall time) as a ``"mean"``
+    :class:`Pooled` figure: their mean over topologies (a NaN kept, as :func:`_mean_units`),
+    its point value that of :func:`numpy.mean`."""
+    vals = np.asarray(values, dtype=np.float64)
+    return _as_computed(_mean_units(list(vals)), np.mean(vals))
 
 
 def _as_computed(p: Pooled, value) -> Pooled:
