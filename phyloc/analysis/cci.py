@@ -307,8 +307,24 @@ def _los_split(par, sf_std_db):
 
 
 def require_los(scenario):
-    """The loaded scenario; an error if it has no LOS part (the CCI's normalization)."""
+    """The loaded scenario; an error if it has no LOS part (the CCI's normalization) or its
+    model is not one whose powers and delays the closed forms know (winner2, exponential,
+    awgn): the tdl model's taps have fixed delays, not the exponential excess delays of
+    DiPNet App. III."""
     scn = load_scenario(scenario)
+    if scn.model not in ("winner2", "exponential", "awgn"):
+        why = {
+            "tdl": "its taps have fixed delays (3GPP TR 38.901 Sec. 7.7.2), not the "
+            "exponentially distributed excess delays of the closed form (DiPNet App. III)",
+        }.get(scn.model, "its path powers are not given by a path-loss law and a K-factor")
+        if scn.los is None or scn.forced == "nlos":
+            why += ", and it has no LOS path, to whose power the indicator is normalized"
+        raise ValidationError(
+            "scenario",
+            scn.name,
+            f"the concavity indicator is computed for the winner2, exponential and awgn models; "
+            f"the {scn.model} model is not supported: {why}",
+        )
     if scn.los is None or scn.forced == "nlos":
         raise ValidationError(
             "scenario",

@@ -48,6 +48,12 @@ pair interferes as in the two-ray model), ``K_s`` specular paths of metallic str
 uniform excess delays and ``N_d`` diffuse rays with exponential excess delays; no shadowing.
 The path loss is ``−10·log10 Σ_l |a_l|²`` of the link's path amplitudes.
 
+TDL model (:mod:`phyloc.channels.tdl`, 3GPP TR 38.901 Sec. 7.7.2): the table's taps at
+``δ_n = τ_n,model · DS``, one path each with mean power ``p_n`` of the link budget (Rayleigh:
+power ``p_n |g_n|²``, ``|g_n|² ~ Exp(1)``; the specular LOS row of TDL-D/E: ``p_n``), uniform
+phases, no Doppler. Its received power is the realized ``Σ_n |α_n|²``, the link budget times
+``G = Σ_n p_n |g_n|²`` (``E[G] = 1``).
+
 Paths of a link are sorted by delay (the LOS path first at a tie). The random streams are
 consumed in a fixed order, so a draw depends only on the seed, the scenario and the batch.
 
@@ -87,6 +93,7 @@ from phyloc.channels.scenario import (
     Winner2Condition,
     load_scenario,
 )
+from phyloc.channels.tdl import TdlCondition, draw_tdl
 from phyloc.errors import ValidationError
 from phyloc.phy.paths import PathSet
 from phyloc.phy.system import C0, OFDMSystem
@@ -116,15 +123,18 @@ class ChannelDraw:
     shadowing_std_db : [n_links], float64
         σ_SF of the link's path-loss segment [dB].
     received_power_w : [n_links], float64
-        ``P_tx − PL − SF`` [W] = ``Σ_l |α_l|²``.
+        ``P_tx − PL − SF`` [W] = ``Σ_l |α_l|²``; tdl model: ``Σ_l |α_l|²``, the link budget
+        times the link's wideband fading gain ``G`` (mean 1) of its Rayleigh taps.
     delay_spread_s : [n_links], float64
         The large-scale delay spread drawn for the link [s] (WINNER II step 4; exponential
-        model: ``excess_delay_mean_s``; field model: the diffuse ``delay_spread_s``; AWGN: 0).
+        model: ``excess_delay_mean_s``; field model: the diffuse ``delay_spread_s``; tdl
+        model: the file's ``delay_spread_s``; AWGN: 0).
         Not the rms spread of ``paths``.
     k_factor_db : [n_links], float64
         Ricean K-factor [dB] of LOS links (exponential model: the fixed ratio; field model:
         direct-path power over the power of all other paths, the ground reflection included;
-        AWGN: +inf); NaN for NLOS links, which have no direct path.
+        tdl model: the mean specular power over the mean power of all Rayleigh taps, TR 38.901
+        Sec. 7.7.6; AWGN: +inf); NaN for NLOS links, which have no direct path.
     distances_m : [n_links], float64
         Link distances [m].
     scenario : str
@@ -261,6 +271,7 @@ def draw_links(
     ds = np.zeros(n)
     k_db = np.full(n, math.nan)
     bias = np.zeros(n)
+    fading_gain = np.ones(n)  # tdl model: Σ_n p_n |g_n|² of the link (else 1)
     counts = np.zeros(n, dtype=np.int64)
     chunks = []
     for cond, mask in (("los", los), ("nlos", ~los)):
@@ -280,6 +291,8 @@ def draw_links(
         if cond == "nlos" and mean_b > 0:
             bias[idx] = rng.exponential(mean_b, idx.size)
         counts[idx] = res["counts"]
+        if "power_gain" in res:
+            fading_gain[idx] = res["power_gain"]
         chunks.append((idx, res))
 
     offsets = np.zeros(n + 1, dtype=np.int64)
@@ -313,7 +326,7 @@ def draw_links(
         path_loss_db=pl,
         shadowing_db=sf,
         shadowing_std_db=sf_std,
-        received_power_w=np.asarray(p_rx, dtype=np.float64),
+        received_power_w=np.asarray(p_rx * fading_gain, dtype=np.float64),
         delay_spread_s=ds,
         k_factor_db=k_db,
         distances_m=d,
@@ -556,6 +569,7 @@ _DRAWERS = {
     Winner2Condition: _draw_winner2,
     ExponentialCondition: _draw_exponential,
     AwgnCondition: _draw_awgn,
+    TdlCondition: draw_tdl,
 }
 
 

@@ -2,7 +2,7 @@
 
 A scenario file (schema ``"phyloc.channel.v1"``) holds metadata, the carrier-frequency range,
 the LOS-probability law and one parameter table per propagation condition, ``[los]`` and/or
-``[nlos]`` (file layout and key list: ``channels/README.md``). Four models exist:
+``[nlos]`` (file layout and key list: ``channels/README.md``). Five models exist:
 
 ``winner2``
     WINNER II generic model (D1.1.2 Part I, Sec. 4.2): path loss + shadowing, log-normal delay
@@ -18,6 +18,10 @@ the LOS-probability law and one parameter table per propagation condition, ``[lo
     An open field with physically stated paths (:mod:`phyloc.channels.field`): the free-space
     direct path, the ground reflection with the Fresnel coefficient of the ground (two-ray),
     specular paths of metallic structures and an exponential diffuse tail. LOS only.
+``tdl``
+    The tapped delay lines TDL-A to TDL-E of 3GPP TR 38.901 (:mod:`phyloc.channels.tdl`):
+    tabulated taps scaled to a delay spread, Rayleigh taps and, in TDL-D/E, a specular first
+    tap; a path-loss law from the file (the shipped files: free space).
 
 Names. Shipped files are found with ``importlib.resources.files("phyloc.scenarios")``. A file
 ``<base>_los.toml`` / ``<base>_nlos.toml`` provides the names ``<base>_los`` / ``<base>_nlos``
@@ -50,10 +54,11 @@ import numpy as np
 
 from phyloc.channels import _schema as s
 from phyloc.channels.pathloss import LosProbability, PathLoss
+from phyloc.channels.tdl import parse_tdl_condition
 from phyloc.errors import ValidationError
 
 SCHEMA = "phyloc.channel.v1"
-MODELS = ("winner2", "exponential", "awgn", "field")
+MODELS = ("winner2", "exponential", "awgn", "field", "tdl")
 CONDITIONS = ("los", "nlos")
 
 #: Default mean NLOS bias [s]: DiPNet §V-A (GREAT ray tracing, urban).
@@ -301,7 +306,7 @@ class Scenario:
     ----------
     name : str
         Scenario name (``winner2_c2``, ``winner2_c2_los``, ``awgn``, a user file's name...).
-    model : {"winner2", "exponential", "awgn", "field"}
+    model : {"winner2", "exponential", "awgn", "field", "tdl"}
     los_probability : LosProbability
         P_LOS(d) (WINNER II D1.1.2 Table 4-7).
     los, nlos : condition parameters or None
@@ -390,6 +395,8 @@ def _parse_condition(model: str, condition: str, table, where: str):
         raise ValidationError(where, "[nlos]", f"the {model} model has a [los] table only")
     if model == "field":
         return _parse_field(table, where)
+    if model == "tdl":
+        return parse_tdl_condition(condition, table, where)
     if model == "awgn":
         spec = {"pathloss": s.Raw()}
     elif model == "exponential":

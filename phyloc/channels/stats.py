@@ -24,6 +24,11 @@ public interface; a figure is omitted when its condition has no links in the dra
                                carrier, ``|Σ_l α_l|²``, relative to the free-space power
                                ``P_tx·(λ/(4π d))²`` [dB] (the two-ray fading)
 ``carrier_gain_db_p10``        its 10th percentile [dB]
+``pdp_rms_delay_spread_s_los`` tdl model: RMS delay spread of the mean power-delay profile
+                               (path powers over the link budget, averaged over links) [s];
+                               table: the file's ``delay_spread_s`` (``*_nlos`` likewise)
+``tap_power_db_max_dev_los``   tdl model: largest ``|10·log10(mean power / table power)|``
+                               over the taps [dB] (``*_nlos`` likewise)
 =============================  ===============================================================
 
 Each figure with a table value has a twin ``<name>_table``. Table values: DS and K from
@@ -55,6 +60,7 @@ from phyloc.channels.scenario import (
     Winner2Condition,
     load_scenario,
 )
+from phyloc.channels.tdl import TdlCondition
 from phyloc.errors import ValidationError
 from phyloc.phy.system import C0, OFDMSystem
 from phyloc.reporting import new_figure, save_figure
@@ -79,7 +85,7 @@ def _expected_paths(par) -> float:
         return par.mean_path_count + (par.condition == "los")
     if isinstance(par, AwgnCondition):
         return 1.0
-    if isinstance(par, FieldCondition):
+    if isinstance(par, FieldCondition | TdlCondition):
         return float(par.paths_per_link)
     return math.nan
 
@@ -171,6 +177,8 @@ def channel_stats(
                 )
         if isinstance(par, FieldCondition):
             _field_figures(put, draw, mask, rms, system)
+        if isinstance(par, TdlCondition):
+            _tdl_figures(put, draw, mask, rms, system, par)
         sf = draw.shadowing_db[mask]
         put(
             f"sf_std_db_{cond}",
@@ -244,6 +252,40 @@ def _field_figures(put, draw: ChannelDraw, mask, rms, system) -> None:
         "carrier power / free space [dB] 10th pct",
         np.percentile(gain_db, 10),
     )
+
+
+def _tdl_figures(put, draw: ChannelDraw, mask, rms, system, par: TdlCondition) -> None:
+    """Mean power-delay profile of tdl-model links against the file's taps (TR 38.901
+    Sec. 7.7.2): its RMS delay spread, the tap powers and (LOS) the K-factor."""
+    cond = par.condition
+    system = OFDMSystem() if system is None else system
+    budget = system.received_power_w(draw.path_loss_db + draw.shadowing_db)  # mean link power
+    m = par.power_fractions.size
+    rows = np.flatnonzero(mask)
+    start = draw.paths.offsets[rows][:, None] + np.arange(m)
+    q = (np.abs(draw.paths.gains[start]) ** 2 / budget[rows][:, None]).mean(axis=0)
+    tau = par.excess_delays_s
+    m1 = np.sum(q * tau) / q.sum()
+    ds = math.sqrt(max(np.sum(q * tau * tau) / q.sum() - m1 * m1, 0.0))
+    put(
+        f"pdp_rms_delay_spread_s_{cond}",
+        f"rms delay spread of the mean PDP [s], {cond.upper()}",
+        ds,
+        par.delay_spread_s,
+    )
+    dev = np.max(np.abs(10.0 * np.log10(q / par.power_fractions)))
+    put(f"tap_power_db_max_dev_{cond}", f"tap power vs table, max |dev| [dB], {cond.upper()}", dev)
+    ok = mask & (rms > 0)
+    if ok.any():
+        put(
+            f"rms_ds_log10_mean_{cond}",
+            f"log10 rms delay spread of paths [s] mean, {cond.upper()}",
+            np.log10(rms[ok]).mean(),
+        )
+    if cond == "los":
+        los = par.is_los_path
+        k = 10.0 * math.log10(q[los].sum() / q[~los].sum())
+        put("k_factor_db_mean", "K-factor [dB] of the mean PDP (specular / Rayleigh)", k, par.k_db)
 
 
 def plot_power_delay_profiles(draw: ChannelDraw, path_png, n_examples: int = 6) -> Path:
