@@ -70,6 +70,9 @@ def test_the_paper_methods_are_registered_with_labels():
     assert METHODS["poa_nbp"].make_options().support == "poa"
     assert METHODS["nbp_ellipse"].make_options().support == "ellipse"
     assert METHODS["pbp"].make_options().start == "mds"
+    # the ellipses the paper cites (S-procedure discs), after the paper's eight
+    assert STATIC[8] == "nbp_bounding" and METHODS["nbp_bounding"].label == "NBP bound."
+    assert METHODS["nbp_bounding"].make_options().proposal == "polygon"
 
 
 def test_measurements_hold_no_agent_positions():

@@ -145,7 +145,16 @@ def test_default_methods_follow_table_1():
     )
     recipe = load_recipe(DATASETS / "poa_nbp.toml")
     exp = experiment_from_dict(se.StaticExperimentSpec, recipe.section("experiment"))
-    assert exp.methods == se.METHODS
+    # Table I in phyloc's form, then each in the paper's form (a variant of the same method)
+    assert exp.methods == se.METHODS + tuple(f"{m}_paper" for m in se.METHODS)
+    plan = se.method_plan(recipe.section("localization"), exp)
+    for m in se.METHODS:
+        name, opts = plan[f"{m}_paper"]
+        assert name == ("nbp_bounding" if m == "nbp_ellipse" else m)
+        if hasattr(opts, "jacobian_weights"):  # POA-NBP eq. (5): equal message weights
+            assert opts.jacobian_weights is False and plan[m][1].jacobian_weights is True
+        else:  # PBP, WLS: the truth-free heuristic start, not the centralized MDS solution
+            assert opts.start == "heuristic" and plan[m][1].start == "mds"
     assert max(exp.sample_sweep) >= 1000 and {800, 1600} <= set(exp.sample_sweep)
     fast = experiment_from_dict(se.StaticExperimentSpec, recipe.section("experiment"), fast=True)
     assert max(fast.sample_sweep) <= 100
@@ -359,6 +368,7 @@ def _fake_static(exp, n_topo, seed=3):
             r[f"poa|{ne}|ops"] = float(rng.integers(100, 1000))
             r[f"poa|{ne}|floats"] = float(rng.uniform(6.0, 20.0))
         r["ellipse|area"] = rng.gamma(2.0, 60.0, (exp.poa_iterations, n))
+        r["ellipse_paper|area"] = 1.3 * r["ellipse|area"]
         r["poa|contained"] = rng.random(n) < 0.97
         r["poa|acceptance"] = rng.uniform(0.3, 0.9, n)
         r["poa|time_per_node_s"] = 1e-4
@@ -559,3 +569,89 @@ def test_convergence_is_counted_per_topology():
     assert f["pbp.start_time_per_node_s"].value == pytest.approx(5e-4, rel=1e-12)
     assert "poa_nbp.start_time_per_node_s" not in f
     assert not any(k.startswith("pbp.sweep.") for k in f)  # no sweep: no PBP sweep figures
+
+
+# -- variants: a label that names its method (the paper's form of a baseline) --------------------
+VARIANTS = """
+[localization.poa_nbp_paper]
+method = "poa_nbp"
+jacobian_weights = false
+
+[localization.nbp_ellipse_paper]
+method = "nbp_bounding"
+jacobian_weights = false
+
+[localization.wls_paper]
+method = "wls"
+mode = "distributed"
+start = "heuristic"
+"""
+
+
+def _with_variants(text, labels):
+    return (
+        text.replace("topologies = 2", "topologies = 1").replace(
+            '"pbp", "wls"]', '"pbp", "wls", ' + ", ".join(f'"{m}"' for m in labels) + "]"
+        )
+        + VARIANTS
+    )
+
+
+def test_variants_run_their_method_and_change_no_other_figure():
+    """Variant labels run the method their table names with its options, on streams after
+    every other one: the figures of the other labels are those of the run without variants
+    (non-timing figures, bit for bit)."""
+    labels = ["poa_nbp_paper", "nbp_ellipse_paper", "wls_paper"]
+    one = load_recipe(TINY.replace("topologies = 2", "topologies = 1"))
+    base = se.STATIC.run(one, progress=False)
+    res = se.STATIC.run(load_recipe(_with_variants(TINY, labels)), progress=False)
+    f, meta = res["figures"], res["meta"]
+    for n, x in base["figures"].items():
+        if static_figures.is_timing(n) or n.endswith("time_to_convergence_ratio"):
+            continue
+        assert _same(x, f[n]), n
+    assert meta["method_of"]["wls_paper"] == "wls" and meta["method_of"]["wls"] == "wls"
+    assert meta["labels"]["nbp_ellipse_paper"] == "NBP bound. (nbp_ellipse_paper)"
+    opts = meta["options"]
+    assert opts["poa_nbp_paper"]["jacobian_weights"] is False
+    assert opts["poa_nbp"]["jacobian_weights"] is True
+    assert (opts["wls_paper"]["start"], opts["wls_paper"]["mode"]) == ("heuristic", "distributed")
+    assert opts["wls"]["start"] == "mds"  # experiment.baseline_start
+    for m in labels:
+        assert math.isfinite(f[f"{m}.mean_error_m"]) and f"poa_nbp_vs_{m}.mean_error_m.ratio" in f
+    # the disc proposal's support: 3 floats per broadcast; POA-NBP shares its polygons
+    assert f["nbp_ellipse_paper.ns40.support_floats_per_link_iteration"] == 3.0
+    assert "wls_paper.start_time_per_node_s" in f
+
+
+def test_bounding_discs_are_no_tighter_than_the_exact_ellipses(tiny):
+    """Fig. 9 with the cited ellipses: in iteration 1 (the same anchor constraints) the mean
+    S-procedure disc is at least the mean exact minimum-area ellipse, less the inflation of
+    the exact baseline's 64-gons (π r² tan²(π/64) for ranges r <= 25 m); no disc grows."""
+    f, ser = tiny["figures"], tiny["series"]
+    slack = math.pi * 25.0**2 * math.tan(math.pi / 64) ** 2
+    assert f["ellipse_paper.area_it1_m2"] >= f["ellipse.area_it1_m2"] - slack
+    a = ser["ellipse_paper.area_m2"]
+    assert a.shape == (3,) and np.all(np.diff(a) <= 1e-9 * a[:-1])
+
+
+@pytest.mark.parametrize(
+    ("edit", "key"),
+    [
+        (('start = "heuristic"', 'start = "truth"'), "localization.wls_paper.start"),
+        (
+            ("jacobian_weights = false\n\n[localization.nbp", 'start = "mds"\n\n[localization.nbp'),
+            "localization.poa_nbp_paper.start",
+        ),
+        (
+            ('method = "nbp_bounding"', 'method = "nbp_bound"'),
+            "localization.nbp_ellipse_paper.method",
+        ),
+    ],
+)
+def test_variant_errors_name_the_key(edit, key):
+    text = _with_variants(TINY, ["poa_nbp_paper", "nbp_ellipse_paper", "wls_paper"])
+    recipe = load_recipe(text.replace(*edit))
+    with pytest.raises(ValidationError) as exc:
+        se.STATIC.run(recipe, progress=False)
+    assert exc.value.field == key

@@ -30,16 +30,28 @@ communication range, one-sided exponential ranging errors of mean 0.38 m, POA-NB
        ``nbp_mixture``       [27] NBP sampling the mixture of incoming messages (plus a uniform
                              fraction; not in Table I)
 
-   The table columns follow the order of ``experiment.methods``.
+   The table columns follow the order of ``experiment.methods``. Any other registered static
+   method may be listed too, e.g. ``nbp_bounding`` (NBP in the S-procedure bounding discs of
+   the feasible sets: the ellipses POA-NBP cites, :mod:`~phyloc.localization.static.bounding`),
+   and so may *variants*: a label that is not a registered name and whose
+   ``[localization.<label>]`` table names its method (``method = "nbp_min_entropy"``) with its
+   own options, e.g. the paper's form of a baseline (``datasets/poa_nbp.toml``: the
+   ``<method>_paper`` labels). Figures are named after the labels.
 
    A method's options are its registered defaults (e.g. the proposal of an NBP variant),
    updated by the shared ``[localization]`` keys its options have (the NBP methods'
    ``bandwidth``, ``uniform_fraction``, …), by ``[experiment]`` (``n_iterations``,
    ``n_samples``, ``poa_n_edges``, ``poa_n_fs``, ``baseline_start``) where the options have
    those fields and by its ``[localization.<label>]`` table (``[localization.pbp]``,
-   ``[localization.wls]``; :mod:`phyloc.evaluation.methods`). Methods with POA support receive
-   the proposal polygons computed for the figures through their prior (so POA runs once per
-   topology, on its own random stream).
+   ``[localization.wls]``; :mod:`phyloc.evaluation.methods`). A label's table may also set
+   ``start`` (``pbp``, ``wls``), which replaces ``baseline_start`` for that label. Methods with
+   POA support receive the proposal polygons computed for the figures through their prior (so
+   POA runs once per topology, on its own random stream).
+
+   Random streams (children of the topology's seed sequence, :func:`_streams`): scenario,
+   polygon study, proposal polygons, one per label that is a registered method, one per sweep
+   run, the rejection-acceptance measurement, then one per variant label. Adding variants
+   therefore changes no other figure of a recipe.
 3. **Samples** (POA-NBP Fig. 12): ``poa_nbp`` and ``nbp_min_entropy`` (or the methods of
    ``sample_methods``) at every ``N_S`` of ``experiment.sample_sweep``.
 
@@ -82,7 +94,14 @@ with ``p`` for the decimal point)::
                                         setting (``poa_n_edges``, ``poa_n_fs``) containing the
                                         agent; ``poa.ne<ne>.containment_fraction`` per N_E
     ``poa.ne<ne>.area_it<l>_m2``        mean polygon area after iteration l [m²] (Fig. 9)
-    ``ellipse.area_it<l>_m2``           mean ellipse area [m²] (Fig. 9)
+    ``ellipse.area_it<l>_m2``           mean ellipse area [m²] (Fig. 9): the exact
+                                        minimum-area ellipses
+                                        (:func:`~phyloc.localization.static.ellipses.
+                                        ellipse_outer_approximation`)
+    ``ellipse_paper.area_it<l>_m2``     the same for the ellipses the paper cites: the
+                                        S-procedure bounding discs
+                                        (:func:`~phyloc.localization.static.bounding.
+                                        feasible_set_bounding`)
     ``poa.time_per_node_s``             POA time per agent (``poa_n_fs`` iterations) [s]
     ``poa.rejection_acceptance_rate``   mean acceptance rate of sampling the proposal polygons by
                                         rejection from their bounding boxes (the paper's way;
@@ -159,9 +178,9 @@ topologies (now ``<m>.curve_convergence_iteration``); ``<m>.time_to_convergence_
 count times the mean time per node-iteration plus the mean setup time (so also
 ``poa_nbp_vs_<m>.time_to_convergence_ratio``). With one topology both are unchanged.
 
-Series: ``iteration``; ``<m>.mean_error_m`` per iteration; ``poa.ne<ne>.area_m2`` and
-``ellipse.area_m2`` per POA iteration; ``outage_threshold_m`` (grid) with ``<m>.outage``,
-``<m>.ns<n>.outage`` and ``pbp.sweep.outage``.
+Series: ``iteration``; ``<m>.mean_error_m`` per iteration; ``poa.ne<ne>.area_m2``,
+``ellipse.area_m2`` and ``ellipse_paper.area_m2`` per POA iteration; ``outage_threshold_m``
+(grid) with ``<m>.outage``, ``<m>.ns<n>.outage`` and ``pbp.sweep.outage``.
 
 Timings are wall times of this process (with several workers they include contention);
 everything else is identical for a seed whatever the worker count.
@@ -196,6 +215,7 @@ from phyloc.evaluation.static_scenarios import paper_static_scenario
 from phyloc.evaluation.statistics import Paired, Pooled
 from phyloc.localization import METHODS as REGISTRY
 from phyloc.localization.static import StaticPrior
+from phyloc.localization.static.bounding import feasible_set_bounding
 from phyloc.localization.static.ellipses import ellipse_outer_approximation
 from phyloc.localization.static.poa_network import poa
 from phyloc.localization.static.static_ranges import range_error_model
@@ -240,7 +260,8 @@ class StaticExperimentSpec:
     poa_iterations : int
         Iterations of the polygon study (5).
     ellipses : bool
-        Run the ellipse baseline of the polygon study.
+        Run the ellipse baselines of the polygon study (the exact minimum-area ellipses and
+        the S-procedure bounding discs the paper cites).
     poa_n_edges, poa_n_fs : int
         N_E and N_FS of the polygons used as proposals (16, 2; POA-NBP §V-B).
     methods : tuple of str
@@ -369,8 +390,18 @@ def method_options(
     values of ``[experiment]`` (``n_iterations``, ``n_samples`` — or the argument ``n_samples``
     of a sweep —, ``poa_n_edges``, ``poa_n_fs``, ``baseline_start`` as ``start``) where the
     options have those fields, and the label's ``[localization.<label>]`` table (``pbp``,
-    ``wls``, …). Unknown keys name ``localization.<key>`` or ``localization.<label>.<key>``.
-    ``labels`` (default ``exp.methods``) selects other labels, e.g. those of the sweep."""
+    ``wls``, …; a variant label names its method, ``method = "<name>"``). A label's table may
+    set ``start`` (methods with a start: ``pbp``, ``wls``), which then replaces
+    ``experiment.baseline_start`` for that label (e.g. a paper-form variant). Unknown keys name
+    ``localization.<key>`` or ``localization.<label>.<key>``. ``labels`` (default
+    ``exp.methods``) selects other labels, e.g. those of the sweep."""
+    plan = method_plan(localization, exp, n_samples, labels)
+    return {label: opts for label, (_, opts) in plan.items()}
+
+
+def method_plan(localization: dict, exp: StaticExperimentSpec, n_samples=None, labels=None) -> dict:
+    """``{label: (registered method name, options)}`` of :func:`method_options` (a label that is
+    not a registered name runs the method its table names)."""
     values = {
         "n_iterations": exp.n_iterations,
         "n_samples": exp.n_samples if n_samples is None else n_samples,
@@ -378,16 +409,42 @@ def method_options(
         "poa_n_fs": exp.poa_n_fs,
         "start": exp.baseline_start,
     }
-    plan = plan_methods(
-        localization,
+    tables, starts = _label_starts(localization)
+    return plan_methods(
+        tables,
         exp.methods if labels is None else labels,
         "static",
         check_shared=labels is None,
         experiment_values=values,
+        overrides=starts,
         forbidden=_FROM_METHOD,
         old_tables={"nbp": _OLD_NBP_TABLE},
     )
-    return {label: opts for label, (_, opts) in plan.items()}
+
+
+def _label_starts(localization):
+    """``(localization without the labels' start keys, {label: {"start": value}})``: a label's
+    ``start`` replaces ``experiment.baseline_start`` (checked here so that an error names
+    ``localization.<label>.start``)."""
+    if not isinstance(localization, dict):
+        return localization, {}
+    out, starts = dict(localization), {}
+    for label, table in localization.items():
+        if not isinstance(table, dict) or "start" not in table:
+            continue
+        start = table["start"]
+        if start not in BASELINE_STARTS:
+            raise ValidationError(
+                f"localization.{label}.start", start, f"one of {', '.join(BASELINE_STARTS)}"
+            )
+        name = table.get("method", label)
+        if name in REGISTRY and "start" not in _fields(REGISTRY[name].options):
+            raise ValidationError(
+                f"localization.{label}.start", start, "only for a method with a start (pbp, wls)"
+            )
+        out[label] = {k: x for k, x in table.items() if k != "start"}
+        starts[label] = {"start": start}
+    return out, starts
 
 
 _OLD_NBP_TABLE = (
@@ -403,7 +460,8 @@ def _errors(res, truth_agents):
 def _task(payload, seed_seq):
     """One topology: scenario, polygon study, every method, the sample sweep."""
     exp, localization, index = payload
-    streams = seed_seq.spawn(4 + len(exp.methods) + len(exp.sample_sweep) * len(exp.sample_methods))
+    plan = method_plan(localization, exp)
+    streams, method_streams, sweep_start, accept = _streams(seed_seq, exp, plan)
     rng = np.random.default_rng(streams[0])
     sc = paper_static_scenario(
         rng,
@@ -444,7 +502,7 @@ def _task(payload, seed_seq):
     )
     out["poa|contained"] = _contained(prop.polygons, truth)
     # the paper samples the polygon by rejection from its bounding box: measured acceptance
-    arng = np.random.default_rng(streams[-1])
+    arng = np.random.default_rng(accept)
     out["poa|acceptance"] = np.array(
         [p.sample_rejection(exp.n_samples, arng)[1] for p in prop.polygons if p is not None]
     )
@@ -469,18 +527,24 @@ def _task(payload, seed_seq):
             n_iterations=exp.poa_iterations,
             region=sc.region,
         ).area_history
+        out["ellipse_paper|area"] = feasible_set_bounding(
+            meas.positions,
+            meas.ranges,
+            meas.is_anchor,
+            n_iterations=exp.poa_iterations,
+            region=sc.region,
+        ).area_history
     # 2. localization (Fig. 10, 11, Table I)
-    options = method_options(localization, exp)
-    s = 3
     for m in exp.methods:
-        mrng = np.random.default_rng(streams[s])
-        s += 1
-        res = _run_method(m, meas, priors, options[m], mrng)
+        mrng = np.random.default_rng(method_streams[m])
+        name, opts = plan[m]
+        res = _run_method(name, meas, priors, opts, mrng)
         out[f"{m}|err"] = _errors(res, truth)
         out[f"{m}|time"] = float(np.mean(res.timing.agent_s))
         out[f"{m}|t_support"] = float(res.diagnostics.get("setup_time_per_node_s", 0.0))
         out[f"{m}|overhead"] = _overhead(res)
     # 3. sample sweep (Fig. 12), in the first experiment.sample_sweep_topologies topologies
+    s = sweep_start
     for m in exp.sample_methods if index < exp.sweep_topologies else ():
         for ns in exp.sample_sweep:
             mrng = np.random.default_rng(streams[s])
@@ -491,6 +555,22 @@ def _task(payload, seed_seq):
             out[f"{m}|ns{ns}|time"] = float(np.mean(res.timing.agent_s))
             out[f"{m}|ns{ns}|overhead"] = _overhead(res)
     return out
+
+
+def _streams(seed_seq, exp: StaticExperimentSpec, plan: dict):
+    """The random streams of one topology: ``(streams, {label: stream}, index of the first
+    sweep stream, acceptance stream)``. Children of ``seed_seq`` in this order: 0 scenario,
+    1 polygon study, 2 proposal polygons, then one per label that is a registered method (in
+    the order of ``exp.methods``), one per sweep run, the rejection-acceptance measurement, and
+    after it one per variant label (a label naming another method), in their order. Adding a
+    variant therefore leaves every other stream — and figure — of a recipe unchanged."""
+    base = [m for m in exp.methods if plan[m][0] == m]
+    variants = [m for m in exp.methods if plan[m][0] != m]
+    n0 = 4 + len(base) + len(exp.sample_sweep) * len(exp.sample_methods)
+    streams = seed_seq.spawn(n0 + len(variants))
+    own = {m: streams[3 + k] for k, m in enumerate(base)}
+    own.update({m: streams[n0 + k] for k, m in enumerate(variants)})
+    return streams, own, 3 + len(base), streams[n0 - 1]
 
 
 #: Overhead diagnostics of a static method's ``Result`` that become figures (NaN: none).
@@ -550,11 +630,13 @@ def settling_from_curve(curve, rel: float, abs_m: float) -> int:
     return int(outside[-1]) + 2 if outside.size else 1
 
 
-def _aggregate(results, exp: StaticExperimentSpec):
+def _aggregate(results, exp: StaticExperimentSpec, names=None):
     """Pool the per-topology outputs: a figure pooled over topologies is a
     :class:`~phyloc.evaluation.statistics.Pooled` value (its interval resamples topologies;
     :func:`_comparisons` adds the paired ratios), so are the convergence iteration and the wall
-    times (one value per topology); the readings of the pooled curve are plain."""
+    times (one value per topology); the readings of the pooled curve are plain. ``names``:
+    ``{label: registered method}`` (default: every label is its method)."""
+    names = names or {}
     figures: dict[str, object] = {}
     series: dict[str, object] = {
         "iteration": np.arange(1, exp.n_iterations + 1),
@@ -581,12 +663,14 @@ def _aggregate(results, exp: StaticExperimentSpec):
             figures[f"poa.ne{ne}.floats_per_link_iteration"] = _as_computed(
                 Pooled.mean(list(fl)), np.nanmean(fl)
             )
-    if exp.ellipses:
-        areas = [r["ellipse|area"] for r in results]
+    for e in ("ellipse", "ellipse_paper") if exp.ellipses else ():
+        if e == "ellipse_paper" and any(f"{e}|area" not in r for r in results):
+            continue  # topologies stored before the bounding discs (a resumed run)
+        areas = [r[f"{e}|area"] for r in results]
         mean_area = _finite_mean(np.concatenate(areas, axis=1))
-        series["ellipse.area_m2"] = mean_area
+        series[f"{e}.area_m2"] = mean_area
         for it in range(exp.poa_iterations):
-            figures[f"ellipse.area_it{it + 1}_m2"] = _as_computed(
+            figures[f"{e}.area_it{it + 1}_m2"] = _as_computed(
                 Pooled.mean([a[it] for a in areas]), mean_area[it]
             )
     figures["poa.containment_fraction"] = Pooled.fraction([r["poa|contained"] for r in results])
@@ -632,7 +716,7 @@ def _aggregate(results, exp: StaticExperimentSpec):
         figures[f"{m}.time_to_convergence_s"] = _per_topology(
             [c * t + u for c, t, u in zip(conv, t_it, t_sup, strict=True)]
         )
-        if "start" in _fields(REGISTRY[m].options):  # pbp, wls: the start alone
+        if "start" in _fields(REGISTRY[names.get(m, m)].options):  # pbp, wls: the start alone
             figures[f"{m}.start_time_per_node_s"] = _per_topology(t_sup)
         series[f"{m}.outage"] = np.mean(final[:, None] > OUTAGE_GRID_M, axis=0)
         for x in exp.outage_thresholds_m:
@@ -658,7 +742,8 @@ def _aggregate(results, exp: StaticExperimentSpec):
     _sweep_references(figures, series, results, exp)
     if "poa_nbp" in exp.methods:  # POA-NBP Table I: POA-NBP against the other NBP variants
         for m in exp.methods:
-            if m != "poa_nbp" and REGISTRY[m].options is REGISTRY["poa_nbp"].options:
+            nbp = REGISTRY[names.get(m, m)].options is REGISTRY["poa_nbp"].options
+            if m != "poa_nbp" and nbp:
                 figures[f"poa_nbp_vs_{m}.time_to_convergence_ratio"] = (
                     figures["poa_nbp.time_to_convergence_s"].value
                     / figures[f"{m}.time_to_convergence_s"].value
@@ -776,15 +861,19 @@ class StaticExperiment(Experiment):
     def prepare(self, recipe, *, fast=False):
         exp = self.experiment_spec(recipe, fast=fast)
         localization = recipe.section("localization")
+        plan = method_plan(localization, exp)
         return SimpleNamespace(
-            exp=exp, localization=localization, opts=method_options(localization, exp)
+            exp=exp,
+            localization=localization,
+            opts={m: opts for m, (_, opts) in plan.items()},
+            names={m: name for m, (name, _) in plan.items()},
         )
 
     def tasks(self, plan):
         return [(i, (plan.exp, plan.localization, i)) for i in range(plan.exp.topologies)]
 
     def aggregate(self, plan, keys, results, ctx):
-        return _aggregate(results, plan.exp)
+        return _aggregate(results, plan.exp, plan.names)
 
     def meta(self, plan, ctx):
         exp, opts = plan.exp, plan.opts
@@ -792,7 +881,11 @@ class StaticExperiment(Experiment):
             "topologies": exp.topologies,
             "n_agents": exp.n_agents,
             "methods": list(exp.methods),
-            "labels": {m: REGISTRY[m].label for m in REGISTRY.family("static")},
+            "labels": {
+                **{m: REGISTRY[m].label for m in REGISTRY.family("static")},
+                **{m: f"{REGISTRY[n].label} ({m})" for m, n in plan.names.items() if m != n},
+            },
+            "method_of": dict(plan.names),
             "n_edges": list(exp.n_edges),
             "sample_sweep": list(exp.sample_sweep),
             "sample_methods": list(exp.sample_methods),

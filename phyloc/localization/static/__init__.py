@@ -26,12 +26,17 @@ name                  label        method
                                    auxiliary-variable importance resampling (POA-NBP
                                    ref. [27]; the mixture proposal without anchor
                                    neighbours)
+``nbp_bounding``      NBP bound.   NBP, uniform proposal in each agent's S-procedure bounding
+                                   disc ('distributed bounding of feasible sets', the
+                                   ellipses POA-NBP cites for 'NBP ell.'; ``N_FS =
+                                   poa_n_fs`` iterations)
 ====================  ===========  =========================================================
 
 Modules: :mod:`~phyloc.localization.static.static_ranges` (measurement models and the family's
 input types), :mod:`~phyloc.localization.static.polygons` (convex polygons and the POA
 operations), :mod:`~phyloc.localization.static.poa_network` (POA over a network),
 :mod:`~phyloc.localization.static.ellipses` (the ellipse baseline),
+:mod:`~phyloc.localization.static.bounding` (the ellipse baseline as cited: S-procedure discs),
 :mod:`~phyloc.localization.static.kde` (message KDEs and their bandwidths),
 :mod:`~phyloc.localization.static.messages` (range messages and their importance-sampled
 product with the proposals), :mod:`~phyloc.localization.static.nbp` (NBP),
@@ -58,6 +63,7 @@ indoor localization."
 """
 
 from phyloc.localization.registry import register_method
+from phyloc.localization.static.bounding import feasible_set_bounding, run_nbp_bounding
 from phyloc.localization.static.ellipses import EllipseRegion, ellipse_outer_approximation
 from phyloc.localization.static.gaussian_bp import (
     GaussianBPOptions,
@@ -95,6 +101,7 @@ __all__ = [
     "WLSOptions",
     "anchor_polygon",
     "ellipse_outer_approximation",
+    "feasible_set_bounding",
     "heuristic_start",
     "intersect",
     "mds_start",
@@ -102,6 +109,7 @@ __all__ = [
     "range_error_model",
     "run_gaussian_bp",
     "run_nbp",
+    "run_nbp_bounding",
     "run_wls",
     "scale_polygon",
 ]
@@ -178,4 +186,15 @@ register_method(
     label="NBP aux.",
     inputs=_INPUTS,
     description="NBP sampling the product of the anchor messages (auxiliary variable)",
+)
+register_method(
+    "nbp_bounding",
+    family="static",
+    run=run_nbp_bounding,
+    options=NBPOptions,
+    defaults={"proposal": "polygon"},
+    label="NBP bound.",
+    inputs=_INPUTS,
+    description="NBP with the uniform proposal in the S-procedure bounding discs of the "
+    "feasible sets (distributed bounding of feasible sets: the ellipses POA-NBP cites)",
 )

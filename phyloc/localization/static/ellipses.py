@@ -4,7 +4,9 @@ The paper compares POA (:func:`~phyloc.localization.static.poa_network.poa`) wit
 of "distributed bounding of feasible sets" (its refs. [8], [10], [42]), which agents exchange
 instead of polygons. :func:`ellipse_outer_approximation` keeps that information flow with the
 tightest ellipse each step (a conservative baseline); :class:`EllipseRegion` makes an ellipse a
-support region of the polygon proposal of POA-NBP eq. (21) (the 'NBP ell.' baseline).
+support region of the polygon proposal of POA-NBP eq. (21) (the 'NBP ell.' baseline). The
+cited convex formulation itself (S-procedure discs, looser) is
+:mod:`~phyloc.localization.static.bounding`.
 
 References
 ----------
