@@ -655,3 +655,18 @@ def test_variant_errors_name_the_key(edit, key):
     with pytest.raises(ValidationError) as exc:
         se.STATIC.run(recipe, progress=False)
     assert exc.value.field == key
+
+
+def test_summary_and_figure_show_both_ellipse_baselines(tiny, tmp_path):
+    """Fig. 9's two ellipse baselines (the exact ellipses and the cited bounding discs) each
+    get a summary line with their per-iteration areas, and the cited discs are never smaller
+    than the exact minimum-area ellipses of the same constraint sets."""
+    f = tiny["figures"]
+    lines = "\n".join(se.STATIC.summary_lines(tiny))
+    for e, what in (("ellipse", "exact ellipses"), ("ellipse_paper", "bounding discs (cited)")):
+        areas = ", ".join(f"{f[f'{e}.area_it{it}_m2']:.0f}" for it in (1, 2, 3))
+        assert f"mean area of the {what} per iteration [m²]: {areas}" in lines
+    for it in (1, 2, 3):
+        assert f[f"ellipse_paper.area_it{it}_m2"] >= f[f"ellipse.area_it{it}_m2"] * (1 - 1e-9)
+    se.STATIC.plot(tiny, tmp_path / "s.png")
+    assert (tmp_path / "s.png").stat().st_size > 1000

@@ -120,9 +120,10 @@ def summary_lines(results: dict):
     for ne in meta["n_edges"]:
         areas = ", ".join(f"{f[f'poa.ne{ne}.area_it{it}_m2']:.0f}" for it in range(1, L + 1))
         out.append(f"mean polygon area N_E={ne} per iteration [m²]: {areas}")
-    if "ellipse.area_it1_m2" in f:
-        areas = ", ".join(f"{f[f'ellipse.area_it{it}_m2']:.0f}" for it in range(1, L + 1))
-        out.append(f"mean ellipse area per iteration [m²]: {areas}")
+    for e, what in (("ellipse", "exact ellipses"), ("ellipse_paper", "bounding discs (cited)")):
+        if f"{e}.area_it1_m2" in f:
+            areas = ", ".join(f"{f[f'{e}.area_it{it}_m2']:.0f}" for it in range(1, L + 1))
+            out.append(f"mean area of the {what} per iteration [m²]: {areas}")
     for m in meta["sample_methods"]:
         parts = [
             f"N_S={ns}: {_cell(f, f'{m}.ns{ns}.mean_error_m')} m" for ns in meta["sample_sweep"]
@@ -164,10 +165,14 @@ def plot(results: dict, path) -> None:
         (line,) = ax[0].plot(it, ser[f"poa.ne{ne}.area_m2"], "o-", label=f"POA N_E={ne}")
         names = [f"poa.ne{ne}.area_it{i}_m2" for i in range(1, len(it) + 1)]
         draw_interval(ax[0], it, f, names, line.get_color())
-    if "ellipse.area_m2" in ser:
-        ax[0].plot(it, ser["ellipse.area_m2"], "k^--", label="ellipses")
-        names = [f"ellipse.area_it{i}_m2" for i in range(1, len(it) + 1)]
-        draw_interval(ax[0], it, f, names, "k")
+    for e, style, label in (
+        ("ellipse", "k^--", "exact ellipses"),
+        ("ellipse_paper", "kv:", "bounding discs (cited)"),
+    ):
+        if f"{e}.area_m2" in ser:
+            ax[0].plot(it, ser[f"{e}.area_m2"], style, label=label)
+            names = [f"{e}.area_it{i}_m2" for i in range(1, len(it) + 1)]
+            draw_interval(ax[0], it, f, names, "k")
     ax[0].set(xlabel="iteration", ylabel="mean area [m²]", yscale="log", title="Fig. 9")
     for m in meta["methods"]:
         label = meta["labels"].get(m, m)
