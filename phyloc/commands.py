@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import hashlib
 import importlib
-import shutil
 import sys
 import time
 from datetime import UTC
@@ -143,7 +142,7 @@ def cmd_evaluate(args) -> int:
         validate_recipe,
     )
     from phyloc.parallel import TaskStore, TaskStoreBusy, TaskStoreMismatch, task_store
-    from phyloc.reporting import OutputExistsError, format_table, machine_meta, write_json
+    from phyloc.reporting import OutputExistsError
 
     if args.plugin:
         from phyloc.localization.registry import add_plugins
@@ -173,11 +172,14 @@ def cmd_evaluate(args) -> int:
             "pass --force to run it again"
         )
     if out.exists() and any(out.iterdir()) and not (args.force or args.resume):
+        if (tasks_dir / "run.json").exists():  # an interrupted run's tasks are kept there
+            raise PhylocError(
+                f"{out} holds an unfinished run (its finished tasks are kept in {tasks_dir}); "
+                "pass --resume to finish it, or --force to discard them and start over"
+            )
         raise OutputExistsError(out)
     if args.json and Path(args.json).exists() and not args.force:
         raise OutputExistsError(args.json)
-    if args.force and tasks_dir.exists():
-        shutil.rmtree(tasks_dir)
     t0 = time.perf_counter()
     kw = {
         "fast": args.fast,
@@ -203,7 +205,8 @@ def cmd_evaluate(args) -> int:
     }
     out_existed = out.exists()
     try:
-        store = TaskStore(tasks_dir, identity, resume=args.resume)
+        # --force discards old tasks only under the folder's lock: never those of a live run
+        store = TaskStore(tasks_dir, identity, resume=args.resume, discard=args.force)
     except TaskStoreMismatch as exc:
         raise PhylocError(
             f"--resume: the unfinished run in {out} differs in {exc} (code: phyloc's sources "
@@ -212,22 +215,37 @@ def cmd_evaluate(args) -> int:
         ) from None
     except TaskStoreBusy as exc:
         raise PhylocError(
-            f"another phyloc evaluate is running into {out} ({exc}); wait for it, or stop it "
-            "and run this command again with --resume"
+            f"another phyloc evaluate is running into {out} ({exc}); nothing was changed there "
+            "(--force does not touch a folder a live run holds): wait for it, or stop it and "
+            "run this command again with --resume"
         ) from None
     try:
-        with task_store(store):
+        with task_store(store, close=False):  # the lock is held until the results are written
             res = exp.run(recipe, **kw) if recipe is not None else exp.run_dataset(source, **kw)
     except BaseException:
         if store.invocations == 1 and store.computed == 0:  # nothing to resume: leave no trace
-            shutil.rmtree(tasks_dir, ignore_errors=True)
-            if not out_existed and not any(out.iterdir()):
+            store.finish()
+            if not out_existed and out.exists() and not any(out.iterdir()):
                 out.rmdir()
+        else:
+            store.close()
         raise
+    try:
+        return _write_evaluation(args, exp, res, store, out, name, text, t0, verify_s)
+    except BaseException:
+        store.close()  # the tasks stay for --resume
+        raise
+
+
+def _write_evaluation(args, exp, res, store, out, name, text, t0, verify_s) -> int:
+    """Write a finished evaluation's results (its task store still locked), print its table,
+    then delete the stored tasks."""
+    from phyloc.reporting import format_table, machine_meta, write_json
+
     wall = time.perf_counter() - t0
     if store.invocations > 1:
         print(
-            f"resumed: {store.reused} finished tasks read back from {tasks_dir}, "
+            f"resumed: {store.reused} finished tasks read back from {store.dir}, "
             f"{store.computed} run now (invocation {store.invocations})"
         )
     res["meta"].update({"seconds": wall, "machine": machine_meta(), "recipe_text": text})
@@ -254,7 +272,7 @@ def cmd_evaluate(args) -> int:
     if args.json:
         write_json(args.json, res["figures"], res["meta"], res["series"], force=args.force)
         print(f"wrote {args.json}")
-    shutil.rmtree(tasks_dir)  # the run is complete: its results are in results.json
+    store.finish()  # the run is complete: its results are in results.json
     return 0
 
 

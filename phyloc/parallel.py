@@ -41,6 +41,7 @@ import hashlib
 import json
 import os
 import pickle
+import shutil
 import time
 from pathlib import Path
 
@@ -297,7 +298,7 @@ class TaskStore:
         message names the fields that differ).
     """
 
-    def __init__(self, directory, identity: dict, *, resume: bool):
+    def __init__(self, directory, identity: dict, *, resume: bool, discard: bool = False):
         self.dir = Path(directory)
         self.identity = dict(identity, code=source_fingerprint())
         self.reused = 0
@@ -309,6 +310,10 @@ class TaskStore:
         self.invocations = 1
         self.dir.mkdir(parents=True, exist_ok=True)
         self._lock = _lock_dir(self.dir)  # one process per store: a second would redo work
+        if discard:  # start over: the old tasks go, under the lock (never a live run's)
+            for entry in self.dir.iterdir():
+                if entry.name != "lock":
+                    shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
         if meta_path.exists():
             if not resume:
                 self.close()
@@ -324,6 +329,18 @@ class TaskStore:
             self.wall_before = float(meta.get("wall_s", 0.0))
             self.invocations = int(meta.get("invocations", 0)) + 1
         self._write_meta()
+
+    def finish(self) -> None:
+        """The run is complete: delete its stored tasks and the store's folder, the lock file
+        last and still held, so that no other process can take the folder in between."""
+        for entry in self.dir.iterdir():
+            if entry.name != "lock":
+                shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+        with contextlib.suppress(FileNotFoundError):
+            (self.dir / "lock").unlink()
+        self.close()
+        with contextlib.suppress(OSError):
+            self.dir.rmdir()
 
     def close(self) -> None:
         """Release the store's lock (another process may then resume it)."""
@@ -398,14 +415,24 @@ def _lock_dir(directory: Path):
         import fcntl
     except ImportError:  # pragma: no cover - not POSIX
         return None
-    f = open(directory / "lock", "a+")  # held open (and locked) for the run
-    try:
-        fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        f.seek(0)
-        pid = f.read().strip() or "?"
+    path = directory / "lock"
+    while True:
+        f = open(path, "a+")  # held open (and locked) for the run
+        try:
+            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.seek(0)
+            pid = f.read().strip() or "?"
+            f.close()
+            raise TaskStoreBusy(f"process {pid} is working on {directory}") from None
+        try:  # the file locked is still the folder's lock (not one a finishing run removed)
+            same = os.stat(path).st_ino == os.fstat(f.fileno()).st_ino
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
         f.close()
-        raise TaskStoreBusy(f"process {pid} is working on {directory}") from None
+        directory.mkdir(parents=True, exist_ok=True)
     f.seek(0)
     f.truncate()
     f.write(str(os.getpid()))
@@ -417,9 +444,11 @@ _STORE: TaskStore | None = None
 
 
 @contextlib.contextmanager
-def task_store(store: TaskStore):
+def task_store(store: TaskStore, *, close: bool = True):
     """Keep every finished task of the :func:`run_tasks` calls inside the block in ``store``
-    (a :class:`TaskStore`), reading back the ones already there."""
+    (a :class:`TaskStore`), reading back the ones already there. ``close=False`` keeps the
+    store's lock after the block (the caller writes its results, then calls
+    :meth:`TaskStore.finish` or :meth:`TaskStore.close`)."""
     global _STORE
     if _STORE is not None:
         raise RuntimeError("task stores do not nest")
@@ -428,5 +457,6 @@ def task_store(store: TaskStore):
         yield store
     finally:
         store._write_meta()
-        store.close()
+        if close:
+            store.close()
         _STORE = None

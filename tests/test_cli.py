@@ -338,3 +338,63 @@ def test_sizes_that_cannot_fit_name_the_keys_the_user_wrote(tmp_path, capsys):
     line = _one_line(capsys.readouterr().err)
     assert "dataset.shard_size = 1000" in line and "of memory" in line and "GiB" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big.toml", "huge.toml"]
+
+
+def test_force_never_touches_a_folder_a_live_run_holds(tmp_path, capsys):
+    """A second ``evaluate --force`` into the folder of a run still in progress (its task
+    store locked, here by a store held open in this process) is refused in one line naming
+    the process, and the live run's kept tasks and its results folder are left as they were;
+    without --force the refusal offers --resume first (the finished tasks are kept)."""
+    import os
+
+    from phyloc.parallel import TaskStore
+
+    recipe = tmp_path / "tiny.toml"
+    recipe.write_text(TINY)
+    out = tmp_path / "res"
+    live = TaskStore(
+        out / ".tasks", {"recipe_sha256": "x", "source": "tiny.toml", "fast": False}, resume=False
+    )
+    (out / ".tasks" / "abc").mkdir()
+    (out / ".tasks" / "abc" / "0.pkl").write_bytes(b"kept")
+    before = sorted(p.relative_to(out) for p in out.rglob("*"))
+    try:
+        capsys.readouterr()
+        assert main(["evaluate", str(recipe), "--out", str(out), "--force"]) == 2
+        line = _one_line(capsys.readouterr().err)
+        assert f"process {os.getpid()}" in line and "--force does not touch" in line
+        assert sorted(p.relative_to(out) for p in out.rglob("*")) == before
+        assert (out / ".tasks" / "abc" / "0.pkl").read_bytes() == b"kept"
+        assert main(["evaluate", str(recipe), "--out", str(out)]) == 2
+        line = _one_line(capsys.readouterr().err)
+        assert "unfinished run" in line and line.index("--resume") < line.index("--force")
+    finally:
+        live.close()
+
+
+def test_force_starts_over_once_the_folder_is_free(tmp_path, capsys):
+    """With no live run, --force discards the old tasks (a stale task file is not read back:
+    a run from scratch gives the same figures as in a fresh folder) and a complete run leaves
+    no task store behind."""
+    from phyloc.parallel import TaskStore
+
+    recipe = tmp_path / "tiny.toml"
+    recipe.write_text(TINY)
+    fresh, out = tmp_path / "fresh", tmp_path / "res"
+    assert main(["evaluate", str(recipe), "--out", str(fresh)]) == 0
+    stale = TaskStore(
+        out / ".tasks", {"recipe_sha256": "x", "source": "t", "fast": False}, resume=False
+    )
+    stale.close()
+    (out / ".tasks" / "junk.pkl").write_bytes(b"stale")
+    assert main(["evaluate", str(recipe), "--out", str(out), "--force"]) == 0
+    assert not (out / ".tasks").exists() and not (fresh / ".tasks").exists()
+    a = json.loads((fresh / "results.json").read_text())["figures"]
+    b = json.loads((out / "results.json").read_text())["figures"]
+    from phyloc.reporting import is_measurement
+
+    keep = [k for k in a if not k.startswith("run.") and not is_measurement(k)]
+    assert keep and sorted(keep) == sorted(
+        k for k in b if not k.startswith("run.") and not is_measurement(k)
+    )
+    assert all(a[k] == b[k] for k in keep)
