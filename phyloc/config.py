@@ -134,12 +134,43 @@ def load_recipe(source, *, kinds=None) -> Recipe:
             ) from None
     else:
         text = str(source)
+    where = f"{path}: " if path else ""
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        where = f"{path}: " if path else ""
         raise RecipeError(f"{where}invalid TOML: {exc}") from None
+    except RecursionError:  # arrays or inline tables nested thousands deep
+        raise RecipeError(
+            f"{where}nests arrays or tables too deeply to read (a recipe nests at most "
+            f"{MAX_DEPTH} levels)"
+        ) from None
+    deep = _too_deep(doc)
+    if deep is not None:
+        raise RecipeError(
+            f"{where}key {deep} nests more than {MAX_DEPTH} levels of tables or arrays; "
+            "a recipe's keys are a few levels deep (e.g. localization.sage.n_particles)"
+        )
     return parse_recipe(doc, text=text, path=path, kinds=kinds)
+
+
+#: The deepest nesting of tables and arrays a recipe may have (the shipped recipes reach 6).
+MAX_DEPTH = 16
+
+
+def _too_deep(doc: dict) -> str | None:
+    """The dotted key (shortened) of the first value nested deeper than :data:`MAX_DEPTH`
+    tables or arrays, or None; iterative, so any depth is measured without recursion."""
+    stack = [(doc, ())]
+    while stack:
+        node, key = stack.pop()
+        if len(key) > MAX_DEPTH:
+            shown = ".".join(map(str, key[:4]))
+            return f"{shown}… ({len(key)}+ levels)"
+        items = node.items() if isinstance(node, dict) else enumerate(node)
+        for k, x in items:
+            if isinstance(x, dict | list):
+                stack.append((x, (*key, k)))
+    return None
 
 
 def parse_recipe(doc: dict, *, text: str = "", path: Path | None = None, kinds=None) -> Recipe:

@@ -332,7 +332,48 @@ def _generate_over_existing(tmp_path):
     return ["generate", str(tmp_path / "d.toml"), "-o", str(tmp_path / "d.h5")], "d.h5"
 
 
+def _deep_dotted_key(tmp_path):
+    key = ".".join(["a"] * 3000)
+    (tmp_path / "deep.toml").write_text(LOCALIZATION + f"{key} = 1\n")
+    return ["evaluate", str(tmp_path / "deep.toml")], "a.a.a…"
+
+
+def _deep_arrays(tmp_path):
+    (tmp_path / "nest.toml").write_text(LOCALIZATION + "x = " + "[" * 5000 + "]" * 5000 + "\n")
+    return ["evaluate", str(tmp_path / "nest.toml")], "too deeply"
+
+
+def _npz_header_claims_petabytes(tmp_path):
+    """An .npz whose array header claims 10^15 float64 (a valid header, 24 bytes of data)."""
+    import io
+    import zipfile
+
+    import numpy as np
+
+    buf = io.BytesIO()
+    header = {"descr": "<f8", "fortran_order": False, "shape": (10**15,)}
+    np.lib.format.write_array_header_1_0(buf, header)
+    buf.write(np.zeros(3).tobytes())
+    with zipfile.ZipFile(tmp_path / "huge.npz", "w") as z:
+        z.writestr("waveforms.npy", buf.getvalue())
+    return ["import", str(tmp_path / "huge.npz"), "-o", str(tmp_path / "o.h5")], "waveforms"
+
+
+def _h5_dataset_beyond_memory(tmp_path):
+    """A plain HDF5 file declaring a 2^50-element dataset (no data written: HDF5 allocates
+    lazily, so the file is small)."""
+    import h5py
+
+    with h5py.File(tmp_path / "big.h5", "w") as f:
+        f.create_dataset("waveforms", shape=(2**50,), dtype="f8", chunks=(1024,))
+    return ["import", str(tmp_path / "big.h5"), "-o", str(tmp_path / "o.h5")], "memory"
+
+
 FILE_CASES = [
+    ("npz-header-claims-petabytes", _npz_header_claims_petabytes),
+    ("hdf5-dataset-beyond-memory", _h5_dataset_beyond_memory),
+    ("recipe-key-3000-levels-deep", _deep_dotted_key),
+    ("recipe-arrays-5000-levels-deep", _deep_arrays),
     ("missing-recipe", _missing),
     ("recipe-is-a-directory", _directory),
     ("recipe-not-utf8", _non_utf8),
@@ -363,3 +404,25 @@ def test_bad_file_or_option_refused(tmp_path, capsys, monkeypatch, case):
 def test_the_catalogue_has_at_least_sixty_named_cases():
     names = [c[0] for c in EVALUATE_RECIPES + GENERATE_RECIPES + FILE_CASES]
     assert len(names) == len(set(names)) >= 60
+
+
+def test_shipped_recipes_nest_well_within_the_limit():
+    """Every shipped recipe loads, and its deepest table or array is far from the nesting
+    limit that refuses crafted recipes (a limit that a real recipe would meet is a defect)."""
+    import tomllib
+    from pathlib import Path
+
+    from phyloc.config import MAX_DEPTH, load_recipe
+
+    def depth(x):
+        if isinstance(x, dict):
+            return 1 + max(map(depth, x.values()), default=0)
+        if isinstance(x, list):
+            return 1 + max(map(depth, x), default=0)
+        return 0
+
+    recipes = sorted((Path(__file__).resolve().parents[1] / "datasets").glob("*.toml"))
+    assert len(recipes) > 20
+    deepest = max(depth(tomllib.loads(r.read_text())) for r in recipes)
+    assert all(load_recipe(r).name for r in recipes)
+    assert 3 <= deepest <= MAX_DEPTH // 2

@@ -106,6 +106,7 @@ def read_arrays(source) -> dict:
 
             def take(name, obj):
                 if isinstance(obj, h5py.Dataset):
+                    _check_size(name, obj.shape, obj.dtype, None)
                     data = obj[()]
                     if isinstance(data, bytes):
                         data = data.decode()
@@ -124,6 +125,8 @@ def read_arrays(source) -> dict:
     out = {}
     with z:
         for name in z.files:
+            shape, dtype, stored = _npy_header(z, name)
+            _check_size(name, shape, dtype, stored)
             try:
                 out[name] = z[name]
             except ValueError:
@@ -131,6 +134,66 @@ def read_arrays(source) -> dict:
                     name, "object array", "plain numeric or text arrays (no pickled objects)"
                 ) from None
     return out
+
+
+def _npy_header(z, name):
+    """``(shape, dtype, bytes stored)`` of member ``name`` of the open ``.npz`` ``z``, read from
+    its ``.npy`` header alone (nothing allocated); ``(None, None, None)`` when the header
+    cannot be read (``z[name]`` then reports the problem)."""
+    member = name if name in z.zip.namelist() else name + ".npy"
+    try:
+        info = z.zip.getinfo(member)
+        with z.zip.open(member) as f:
+            version = np.lib.format.read_magic(f)
+            read = (
+                np.lib.format.read_array_header_1_0
+                if version == (1, 0)
+                else np.lib.format.read_array_header_2_0
+            )
+            shape, _, dtype = read(f, max_header_size=1 << 20)
+            return shape, dtype, info.file_size - f.tell()
+    except (KeyError, ValueError, OSError, zipfile.BadZipFile):
+        return None, None, None
+
+
+def _memory_bytes() -> float:
+    """This machine's physical memory [bytes] (inf where it cannot be read)."""
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return math.inf
+
+
+def _check_size(name, shape, dtype, stored) -> None:
+    """Refuse array ``name`` from its declared ``shape`` and ``dtype`` before reading it: more
+    bytes than its file member holds (``stored``; a crafted header), or more than this
+    machine's memory."""
+    if shape is None or dtype is None:
+        return
+    need = math.prod(int(x) for x in shape) * np.dtype(dtype).itemsize
+    if stored is not None and need > stored:
+        raise ValidationError(
+            name,
+            f"declared shape {tuple(shape)} of {np.dtype(dtype)} ({_human(need)})",
+            f"its file member holds {_human(stored)} of data: a damaged or crafted header",
+        )
+    memory = _memory_bytes()
+    if need > memory:
+        raise ValidationError(
+            name,
+            f"shape {tuple(shape)} of {np.dtype(dtype)} ({_human(need)})",
+            f"more than this machine's memory ({_human(memory)}); split the recording into "
+            "smaller files",
+        )
+
+
+def _human(n: float) -> str:
+    """A byte count with a binary unit: 7.11 PiB."""
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024:
+            return f"{n:.3g} {unit}"
+        n /= 1024
+    return f"{n:.3g} PiB"
 
 
 # -- the stored recipe ------------------------------------------------------------------------
