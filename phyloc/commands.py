@@ -148,6 +148,8 @@ def cmd_evaluate(args) -> int:
         from phyloc.localization.registry import add_plugins
 
         add_plugins(args.plugin)
+        if args.scheduler:
+            _check_workers_know_plugins(args.scheduler)
     source = Path(args.recipe)
     if source.suffix in (".h5", ".hdf5") or _is_hdf5(source):
         exp = DATASET_LOCALIZATION
@@ -235,6 +237,29 @@ def cmd_evaluate(args) -> int:
     except BaseException:
         store.close()  # the tasks stay for --resume
         raise
+
+
+def _check_workers_know_plugins(scheduler: str) -> None:
+    """Workers started by hand import plugins only from their own ``PHYLOC_PLUGINS``: refuse
+    a run whose workers lack a plugin method of this process, saying how to start them."""
+    import os
+
+    from phyloc.localization.registry import PLUGINS_ENV, method_names, plugin_methods
+    from phyloc.parallel import connect
+
+    wanted = plugin_methods()
+    if not wanted:
+        return
+    with connect(scheduler) as client:
+        known = client.run(method_names)
+    lacking = sorted(w for w, names in known.items() if not set(wanted) <= set(names))
+    if lacking:
+        raise PhylocError(
+            f"{len(lacking)} of the {len(known)} workers of {scheduler} do not know the plugin "
+            f"method(s) {', '.join(wanted)} (e.g. {lacking[0]}): start each worker with the "
+            f"plugin, e.g. {PLUGINS_ENV}={os.environ.get(PLUGINS_ENV, '')} dask worker "
+            f"{scheduler}"
+        )
 
 
 def _write_evaluation(args, exp, res, store, out, name, text, t0, verify_s) -> int:

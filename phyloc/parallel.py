@@ -96,6 +96,31 @@ class _OneBlasThread:
             return self.fn(payload, seed)
 
 
+class _Failed:
+    """A task's :class:`~phyloc.errors.PhylocError` returned as its value from a Dask worker
+    (raised again in the client): a user's error is reported once, in phyloc's one line,
+    not also in the worker's "Compute Failed" log."""
+
+    def __init__(self, error):
+        self.error = error
+
+
+class _ReportErrors:
+    """``fn(payload, seed)``, a :class:`~phyloc.errors.PhylocError` it raises returned as
+    :class:`_Failed` (picklable for Dask)."""
+
+    def __init__(self, fn):
+        self.fn = fn
+
+    def __call__(self, payload, seed):
+        from phyloc.errors import PhylocError
+
+        try:
+            return self.fn(payload, seed)
+        except PhylocError as exc:
+            return _Failed(exc)
+
+
 def _quiet_progress() -> bool:
     return bool(os.environ.get("PHYLOC_NO_PROGRESS"))
 
@@ -233,13 +258,17 @@ def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show, on_result=
     from dask.distributed import as_completed
 
     with dask_client(workers=workers, scheduler=scheduler) as client:
-        futures = client.map(fn, payloads, seeds, pure=False)
+        futures = client.map(_ReportErrors(fn), payloads, seeds, pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
         results = [None] * len(futures)
         bar = tqdm(total=len(futures), desc=desc, disable=not show, leave=False)
         for fut in as_completed(futures):
             i = index[fut.key]
             results[i] = fut.result()
+            if isinstance(results[i], _Failed):
+                client.cancel(futures)
+                bar.close()
+                raise results[i].error
             if on_result is not None:
                 on_result(i, results[i])
             bar.update(1)

@@ -126,3 +126,29 @@ def test_evaluate_on_a_cluster_gives_the_in_process_figures(tmp_path, cluster, m
     same = {k for k in runs["local"] if not k.startswith("run.") and "seconds" not in k}
     assert same and {k: runs["cluster"][k] for k in same} == {k: runs["local"][k] for k in same}
     assert runs["cluster"]["run.workers"] == 0  # a scheduler: the worker count is not ours
+
+
+def test_workers_without_the_plugin_are_named_before_any_work(
+    tmp_path, cluster, capsys, monkeypatch
+):
+    """``evaluate --plugin P --scheduler A`` whose workers were started without the plugin:
+    one line saying that the workers do not know the method and how to start them with it
+    (not the worker's "method = … is not allowed"), before any task runs."""
+    from test_plugins import EXAMPLE, _recipe
+
+    from phyloc.localization import METHODS, registry
+
+    monkeypatch.setattr(METHODS, "_methods", dict(METHODS._methods))
+    monkeypatch.setattr(registry, "_loaded", set())
+    monkeypatch.delenv("PHYLOC_PLUGINS", raising=False)
+    address, _ = cluster
+    recipe = tmp_path / "p.toml"
+    recipe.write_text(_recipe())
+    out = tmp_path / "out"
+    argv = ["evaluate", str(recipe), "--out", str(out), "--scheduler", address]
+    assert main([*argv, "--plugin", str(EXAMPLE)]) != 0
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert "2 of the 2 workers" in err and "prior_mean" in err
+    assert f"PHYLOC_PLUGINS={EXAMPLE}" in err and f"dask worker {address}" in err
+    assert not out.exists()

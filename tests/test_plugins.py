@@ -98,3 +98,44 @@ def test_unknown_option_of_a_plugin_method_names_the_key(tmp_path, capsys):
     assert code == 2
     err = capsys.readouterr().err
     assert "shrnk" in err and "shrink" in err
+
+
+def _buggy_plugin(tmp_path) -> Path:
+    """The example plugin with a bug in its method: ``run`` raises RuntimeError."""
+    text = EXAMPLE.read_text().replace(
+        "    t0 = time.perf_counter()\n", '    raise RuntimeError("my bug")\n', 1
+    )
+    path = tmp_path / "buggy_plugin.py"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("workers", [[], ["--workers", "2"]], ids=["in-process", "dask"])
+def test_an_exception_in_a_plugin_method_names_the_method_and_file(tmp_path, capfd, workers):
+    """A plugin method that raises: a non-zero exit with one line naming the method, the
+    plugin file and the exception (no "internal error", and on workers no Dask "Compute
+    Failed" log: stderr is captured at the file descriptor, the workers' included)."""
+    plugin = _buggy_plugin(tmp_path)
+    code, _ = _evaluate(tmp_path, "bug", extra=["--plugin", str(plugin), *workers])
+    assert code != 0
+    err = capfd.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    line = lines[0]
+    assert "internal error" not in line and "Traceback" not in err
+    assert "'prior_mean'" in line and "buggy_plugin.py" in line and "RuntimeError: my bug" in line
+
+
+def test_a_plugin_with_a_syntax_error_names_file_and_line(tmp_path, capsys):
+    """A plugin file that does not parse: one line with the file, the line and the error."""
+    lines = EXAMPLE.read_text().splitlines()
+    bad_line = next(i for i, ln in enumerate(lines) if ln.startswith("def run(")) + 1
+    lines[bad_line - 1] = "def run(measurements, prior, rng, options)"  # the colon missing
+    plugin = tmp_path / "broken_plugin.py"
+    plugin.write_text("\n".join(lines) + "\n")
+    code, _ = _evaluate(tmp_path, "broken", extra=["--plugin", str(plugin)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "internal error" not in err and "Traceback" not in err
+    assert "broken_plugin.py" in err and f"line {bad_line}" in err and "SyntaxError" in err

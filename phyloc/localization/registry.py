@@ -32,7 +32,7 @@ import sys
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 
-from phyloc.errors import ValidationError
+from phyloc.errors import PhylocError, ValidationError
 
 #: Environment variable listing plugin modules (``os.pathsep``-separated module names or
 #: ``.py`` paths) that :func:`load_plugins` imports; ``phyloc evaluate --plugin`` sets it so
@@ -194,6 +194,8 @@ def register_method(
     >>> METHODS["stay_doc"].family
     'direct'
     """
+    if _importing and callable(run):  # registered by a plugin: its errors name it
+        run = PluginRun(run, name, os.path.basename(_importing[-1]))
     return METHODS.register(
         Method(
             name=name,
@@ -210,6 +212,34 @@ def register_method(
 
 
 _loaded: set[str] = set()
+_importing: list[str] = []  # the plugin being imported (its methods' runs are wrapped)
+
+
+class PluginError(PhylocError):
+    """A plugin failed: its file does not import, or one of its methods raised (the message
+    names the method and the file; ``phyloc --debug`` shows the plugin's traceback)."""
+
+
+@dataclass(frozen=True)
+class PluginRun:
+    """A plugin method's ``run``: calls it, and turns an exception it raises into a
+    :class:`PluginError` naming the method and its plugin file (chained to the original, for
+    ``--debug``). Picklable where ``fn`` is (worker processes import the plugin too)."""
+
+    fn: Callable
+    method: str
+    source: str
+
+    def __call__(self, *args, **kwargs):
+        try:
+            return self.fn(*args, **kwargs)
+        except PhylocError:
+            raise
+        except Exception as exc:
+            raise PluginError(
+                f"error in plugin method {self.method!r} ({self.source}): "
+                f"{type(exc).__name__}: {exc} (phyloc --debug ... shows its traceback)"
+            ) from exc
 
 
 def _import_plugin(spec: str) -> None:
@@ -223,14 +253,43 @@ def _import_plugin(spec: str) -> None:
         module_spec = importlib.util.spec_from_file_location(name, path)
         module = importlib.util.module_from_spec(module_spec)
         sys.modules[name] = module
-        module_spec.loader.exec_module(module)
+        _importing.append(path)
+        try:
+            module_spec.loader.exec_module(module)
+        except SyntaxError as exc:
+            sys.modules.pop(name, None)
+            raise PluginError(f"plugin {path} line {exc.lineno}: SyntaxError: {exc.msg}") from exc
+        except Exception as exc:
+            sys.modules.pop(name, None)
+            raise PluginError(
+                f"plugin {path} failed to import: {type(exc).__name__}: {exc} "
+                "(phyloc --debug ... shows its traceback)"
+            ) from exc
+        finally:
+            _importing.pop()
     else:
+        _importing.append(spec)
         try:
             importlib.import_module(spec)
         except ImportError as exc:
-            raise ValidationError(
-                "--plugin", spec, f"an importable module name or a .py file ({exc})"
-            ) from None
+            if getattr(exc, "name", None) == spec:
+                raise ValidationError(
+                    "--plugin", spec, f"an importable module name or a .py file ({exc})"
+                ) from None
+            raise PluginError(
+                f"plugin module {spec} failed to import: {type(exc).__name__}: {exc}"
+            ) from exc
+        except SyntaxError as exc:
+            raise PluginError(
+                f"plugin module {spec} ({exc.filename} line {exc.lineno}): SyntaxError: {exc.msg}"
+            ) from exc
+        except Exception as exc:
+            raise PluginError(
+                f"plugin module {spec} failed to import: {type(exc).__name__}: {exc} "
+                "(phyloc --debug ... shows its traceback)"
+            ) from exc
+        finally:
+            _importing.pop()
 
 
 def load_plugins(specs=None) -> None:
@@ -254,6 +313,16 @@ def load_plugins(specs=None) -> None:
         if spec not in _loaded:
             _import_plugin(spec)
             _loaded.add(spec)
+
+
+def method_names() -> list[str]:
+    """The names this process has registered (run on Dask workers to see what they know)."""
+    return list(METHODS)
+
+
+def plugin_methods() -> list[str]:
+    """The methods registered by plugins in this process."""
+    return [name for name in METHODS if isinstance(METHODS[name].run, PluginRun)]
 
 
 def add_plugins(specs) -> None:
