@@ -316,6 +316,9 @@ def require_los(scenario):
         why = {
             "tdl": "its taps have fixed delays (3GPP TR 38.901 Sec. 7.7.2), not the "
             "exponentially distributed excess delays of the closed form (DiPNet App. III)",
+            "tr38901": "its cluster powers and delays follow 3GPP TR 38.901 Sec. 7.5 (a "
+            "cluster power law, delay scaling by the K-factor, sub-clusters), whose expected "
+            "scatter power the closed form of DiPNet eqs. (43)-(44) does not cover",
         }.get(scn.model, "its path powers are not given by a path-loss law and a K-factor")
         if scn.los is None or scn.forced == "nlos":
             why += ", and it has no LOS path, to whose power the indicator is normalized"

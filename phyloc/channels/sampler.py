@@ -54,6 +54,13 @@ power ``p_n |g_n|²``, ``|g_n|² ~ Exp(1)``; the specular LOS row of TDL-D/E: ``
 phases, no Doppler. Its received power is the realized ``Σ_n |α_n|²``, the link budget times
 ``G = Σ_n p_n |g_n|²`` (``E[G] = 1``).
 
+TR 38.901 system-level model (:mod:`phyloc.channels.tr38901`, Sec. 7.4–7.5): LOS probability,
+path loss and σ_SF of the scenario's tables (heights from ``h_tx_m``/``h_rx_m``, the link
+distance taken as the 3D distance), DS/K/SF with the cross-correlation of Table 7.5-6,
+exponential cluster delays (LOS: divided by C_τ), cluster powers with shadowing, removal of
+clusters 25 dB below the strongest, sub-clusters of the two strongest at 0, 1.28, 2.56·c_DS,
+the direct path in LOS; NLOS bias as above.
+
 Paths of a link are sorted by delay (the LOS path first at a tie). The random streams are
 consumed in a fixed order, so a draw depends only on the seed, the scenario and the batch.
 
@@ -94,6 +101,7 @@ from phyloc.channels.scenario import (
     load_scenario,
 )
 from phyloc.channels.tdl import TdlCondition, draw_tdl
+from phyloc.channels.tr38901 import Tr38901Condition, draw_tr38901
 from phyloc.errors import ValidationError
 from phyloc.phy.paths import PathSet
 from phyloc.phy.system import C0, OFDMSystem
@@ -200,6 +208,7 @@ def draw_links(
     nlos_bias_mean_s: float | None = None,
     h_tx_m=1.5,
     h_rx_m=1.5,
+    h_e_m=None,
 ) -> ChannelDraw:
     """Draw the multipath channels of a batch of links (one-way).
 
@@ -225,6 +234,10 @@ def draw_links(
         Antenna heights [m], > 0 (default 1.5 m, device to device). The path-loss laws use
         ``h_BS = max`` and ``h_MS = min`` of the two; the field model's ground reflection uses
         both (its path length ``sqrt(d² + (h_tx + h_rx)²)``).
+    h_e_m : float, optional
+        tr38901 model only: the environment height ``h_E`` [m] (>= 0) of the breakpoint
+        distance ``d'_BP`` (TR 38.901 Table 7.4.1-1, note 1); default the file's (UMi: 1 m;
+        UMa: drawn per link).
 
     Returns
     -------
@@ -262,8 +275,10 @@ def draw_links(
     h_bs, h_ms = np.maximum(h_tx, h_rx), np.minimum(h_tx, h_rx)
     if nlos_bias_mean_s is not None:
         nlos_bias_mean_s = v.positive("nlos_bias_mean_s", nlos_bias_mean_s, allow_zero=True)
+    if h_e_m is not None:
+        h_e_m = _environment_height(scn, h_e_m)
 
-    los = _conditions(scn, condition, d, rng)
+    los = _conditions(scn, condition, d, rng, h_bs, h_ms)
 
     pl = np.zeros(n)
     sf_std = np.zeros(n)
@@ -282,6 +297,9 @@ def draw_links(
         if isinstance(par, FieldCondition):  # path loss from the paths themselves
             res = _draw_field(par, d[idx], fc, h_tx[idx], h_rx[idx], rng)
             pl[idx] = res["pl_db"]
+        elif isinstance(par, Tr38901Condition):  # heights and h_E enter the path loss
+            res = draw_tr38901(par, d[idx], fc, h_bs[idx], h_ms[idx], rng, h_e_m=h_e_m)
+            pl[idx], sf_std[idx] = res["pl_db"], res["sf_std_db"]
         else:
             par.pathloss.check_heights(h_bs[idx], h_ms[idx])
             pl[idx], sf_std[idx] = par.pathloss.evaluate(d[idx], fc, h_bs[idx], h_ms[idx])
@@ -343,13 +361,33 @@ def _heights(name: str, h, n: int) -> np.ndarray:
     return np.ascontiguousarray(np.broadcast_to(arr, (n,)), dtype=np.float64)
 
 
-def _conditions(scn: Scenario, condition, d: np.ndarray, rng) -> np.ndarray:
-    """LOS flag per link: forced, given, or drawn from P_LOS(d) (WINNER II D1.1.2 Table 4-7)."""
+def _environment_height(scn: Scenario, h_e_m) -> float:
+    """The recipe's ``h_e_m`` (tr38901 model only), >= 0."""
+    if scn.model != "tr38901":
+        raise ValidationError(
+            "h_e_m",
+            h_e_m,
+            f"only the tr38901 model has an environment height; scenario '{scn.name}' is "
+            f"{scn.model} (remove h_e_m)",
+        )
+    if not any(p is not None and p.pathloss.uses_environment_height for p in (scn.los, scn.nlos)):
+        raise ValidationError(
+            "h_e_m",
+            h_e_m,
+            f"scenario '{scn.name}' has no breakpoint with an environment height h_E "
+            "(TR 38.901 UMi and UMa have one; remove h_e_m)",
+        )
+    return v.positive("h_e_m", h_e_m, allow_zero=True)
+
+
+def _conditions(scn: Scenario, condition, d: np.ndarray, rng, h_bs=1.5, h_ms=1.5) -> np.ndarray:
+    """LOS flag per link: forced, given, or drawn from P_LOS(d) (WINNER II D1.1.2 Table 4-7;
+    TR 38.901 Table 7.4.2-1, which also depends on the antenna heights)."""
     n = d.size
     if condition is None:
         if scn.forced is not None:
             return np.full(n, scn.forced == "los")
-        return rng.random(n) < scn.los_probability(d)
+        return rng.random(n) < scn.p_los(d, h_bs, h_ms)
     if isinstance(condition, str):
         if condition not in CONDITIONS:
             raise ValidationError("condition", condition, "None, 'los', 'nlos' or a bool array")
@@ -646,6 +684,9 @@ class ChannelSpec:
         different frequencies for forward and backward links). It enters the backward
         draw's path loss, which must be within the scenario's validity range. ``None``
         (default): the system's carrier, as the forward draw.
+    h_e_m : float or None
+        tr38901 scenarios only: environment height ``h_E`` [m] (>= 0) of the breakpoint
+        distance (TR 38.901 Table 7.4.1-1); ``None`` (default): the scenario file's.
     """
 
     scenario: str = "winner2_c2"
@@ -655,6 +696,7 @@ class ChannelSpec:
     h_rx_m: float = 1.5
     condition: str | None = None
     backward_carrier_frequency_hz: float | None = None
+    h_e_m: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.scenario, str):
@@ -687,6 +729,12 @@ class ChannelSpec:
             except ValidationError as err:
                 raise ValidationError(key, fb, err.allowed) from None
             object.__setattr__(self, "backward_carrier_frequency_hz", fb)
+        if self.h_e_m is not None:
+            try:
+                h_e = _environment_height(scn, self.h_e_m)
+            except ValidationError as err:
+                raise ValidationError("channel.h_e_m", self.h_e_m, err.allowed) from None
+            object.__setattr__(self, "h_e_m", h_e)
 
     def load(self) -> Scenario:
         """The validated :class:`Scenario`."""
@@ -724,6 +772,7 @@ class ChannelSpec:
             nlos_bias_mean_s=self.nlos_bias_mean_s,
             h_tx_m=self.h_tx_m,
             h_rx_m=self.h_rx_m,
+            h_e_m=self.h_e_m,
         )
         scn = self.load()
         fwd = draw_links(scn, distances_m, rng, condition=self.condition, **kw)

@@ -22,6 +22,10 @@ the LOS-probability law and one parameter table per propagation condition, ``[lo
     The tapped delay lines TDL-A to TDL-E of 3GPP TR 38.901 (:mod:`phyloc.channels.tdl`):
     tabulated taps scaled to a delay spread, Rayleigh taps and, in TDL-D/E, a specular first
     tap; a path-loss law from the file (the shipped files: free space).
+``tr38901``
+    The system-level scenarios of 3GPP TR 38.901 Sec. 7.4–7.5 in the delay domain
+    (:mod:`phyloc.channels.tr38901`): LOS probability, path loss and shadowing with the
+    tables' own laws, DS/K/SF with cross-correlation, clusters with sub-clusters.
 
 Names. Shipped files are found with ``importlib.resources.files("phyloc.scenarios")``. A file
 ``<base>_los.toml`` / ``<base>_nlos.toml`` provides the names ``<base>_los`` / ``<base>_nlos``
@@ -55,10 +59,11 @@ import numpy as np
 from phyloc.channels import _schema as s
 from phyloc.channels.pathloss import LosProbability, PathLoss
 from phyloc.channels.tdl import parse_tdl_condition
+from phyloc.channels.tr38901 import parse_tr38901
 from phyloc.errors import ValidationError
 
 SCHEMA = "phyloc.channel.v1"
-MODELS = ("winner2", "exponential", "awgn", "field", "tdl")
+MODELS = ("winner2", "exponential", "awgn", "field", "tdl", "tr38901")
 CONDITIONS = ("los", "nlos")
 
 #: Default mean NLOS bias [s]: DiPNet §V-A (GREAT ray tracing, urban).
@@ -306,9 +311,9 @@ class Scenario:
     ----------
     name : str
         Scenario name (``winner2_c2``, ``winner2_c2_los``, ``awgn``, a user file's name...).
-    model : {"winner2", "exponential", "awgn", "field", "tdl"}
-    los_probability : LosProbability
-        P_LOS(d) (WINNER II D1.1.2 Table 4-7).
+    model : {"winner2", "exponential", "awgn", "field", "tdl", "tr38901"}
+    los_probability : LosProbability or Tr38901LosProbability
+        P_LOS(d) (WINNER II D1.1.2 Table 4-7; TR 38.901 Table 7.4.2-1).
     los, nlos : condition parameters or None
         Parameters per condition; a missing one cannot be drawn.
     forced : {"los", "nlos"} or None
@@ -340,11 +345,17 @@ class Scenario:
             )
         return p
 
-    def p_los(self, distances_m) -> np.ndarray:
-        """Probability that a link is LOS in this scenario (1/0 when the condition is forced)."""
+    def p_los(self, distances_m, h_bs_m=1.5, h_ut_m=1.5) -> np.ndarray:
+        """Probability that a link is LOS in this scenario (1/0 when the condition is forced).
+
+        ``h_bs_m``, ``h_ut_m`` (higher and lower antenna height [m]) enter only the tr38901
+        laws (TR 38.901 Table 7.4.2-1: the 2D distance, UMa's ``h_UT`` term, InF-SH/DH).
+        """
         d = np.asarray(distances_m, dtype=np.float64)
         if self.forced is not None:
             return np.full(d.shape, 1.0 if self.forced == "los" else 0.0)
+        if self.model == "tr38901":
+            return self.los_probability(d, h_bs_m, h_ut_m)
         return self.los_probability(d)
 
     def with_condition(self, condition: str | None) -> Scenario:
@@ -511,11 +522,14 @@ def parse_scenario(doc: dict, label: str) -> Scenario:
         raise ValidationError(
             f"{label}: validity.carrier_frequency_hz", [lo, hi], "[low, high] with low < high"
         )
-    plos = LosProbability.from_table(top["los_probability"], f"{label}: los_probability")
-    conds = {}
-    for c in CONDITIONS:
-        if top[c] is not None:
-            conds[c] = _parse_condition(top["model"], c, top[c], f"{label}: {c}")
+    if top["model"] == "tr38901":  # the NLOS path loss refers to the LOS law: parse together
+        plos, conds = parse_tr38901(top["los_probability"], top["los"], top["nlos"], label)
+    else:
+        plos = LosProbability.from_table(top["los_probability"], f"{label}: los_probability")
+        conds = {}
+        for c in CONDITIONS:
+            if top[c] is not None:
+                conds[c] = _parse_condition(top["model"], c, top[c], f"{label}: {c}")
     if not conds:
         raise ValidationError(f"{label}: los", s.MISSING, "a [los] and/or an [nlos] table")
     forced = None if len(conds) == 2 else next(iter(conds))

@@ -29,6 +29,11 @@ public interface; a figure is omitted when its condition has no links in the dra
                                table: the file's ``delay_spread_s`` (``*_nlos`` likewise)
 ``tap_power_db_max_dev_los``   tdl model: largest ``|10·log10(mean power / table power)|``
                                over the taps [dB] (``*_nlos`` likewise)
+``corr_ds_sf_los``             tr38901 model: correlation of log10 DS and SF over LOS links;
+                               table: TR 38.901 Table 7.5-6 (``corr_ds_k``, ``corr_sf_k``:
+                               LOS only; ``corr_ds_sf_nlos``)
+``cluster_count_mean_los``     tr38901 model: clusters per link after the removal of those
+                               25 dB below the strongest (before: the table's N)
 =============================  ===============================================================
 
 Each figure with a table value has a twin ``<name>_table``. Table values: DS and K from
@@ -61,6 +66,7 @@ from phyloc.channels.scenario import (
     load_scenario,
 )
 from phyloc.channels.tdl import TdlCondition
+from phyloc.channels.tr38901 import Tr38901Condition
 from phyloc.errors import ValidationError
 from phyloc.phy.system import C0, OFDMSystem
 from phyloc.reporting import new_figure, save_figure
@@ -87,7 +93,7 @@ def _expected_paths(par) -> float:
         return 1.0
     if isinstance(par, FieldCondition | TdlCondition):
         return float(par.paths_per_link)
-    return math.nan
+    return math.nan  # tr38901: the count varies with the removal of weak clusters
 
 
 def channel_stats(
@@ -98,6 +104,8 @@ def channel_stats(
     rng: np.random.Generator,
     system=None,
     png_path=None,
+    h_tx_m: float = 1.5,
+    h_rx_m: float = 1.5,
 ) -> dict:
     """Draw links in a square and compare realized statistics with the scenario tables.
 
@@ -116,6 +124,8 @@ def channel_stats(
     png_path : str or Path, optional
         If given, also write example power-delay profiles of this draw there
         (:func:`plot_power_delay_profiles`).
+    h_tx_m, h_rx_m : float
+        Antenna heights [m] of every link (default 1.5 m; the tr38901 laws use them).
 
     Returns
     -------
@@ -135,7 +145,8 @@ def channel_stats(
     if not isinstance(rng, np.random.Generator):
         raise ValidationError("rng", type(rng).__name__, "a numpy.random.Generator")
     d = square_pair_distances(n_links, square_m, rng)
-    draw = draw_links(scn, d, rng, system=system)
+    draw = draw_links(scn, d, rng, system=system, h_tx_m=h_tx_m, h_rx_m=h_rx_m)
+    h_bs, h_ut = max(h_tx_m, h_rx_m), min(h_tx_m, h_rx_m)
     fig: dict[str, float] = {}
     rows: list[tuple[str, float, float | None]] = []
 
@@ -147,7 +158,7 @@ def channel_stats(
         else:
             rows.append((label, float(realized), None))
 
-    p_los = scn.p_los(d)
+    p_los = scn.p_los(d, h_bs, h_ut)
     put("distance_mean_m", "link distance mean [m]", d.mean())
     put("los_fraction", "LOS fraction", draw.los.mean(), p_los.mean())
     rms = draw.rms_delay_spread()
@@ -179,6 +190,8 @@ def channel_stats(
             _field_figures(put, draw, mask, rms, system)
         if isinstance(par, TdlCondition):
             _tdl_figures(put, draw, mask, rms, system, par)
+        if isinstance(par, Tr38901Condition):
+            _tr38901_figures(put, draw, mask, rms, system, par)
         sf = draw.shadowing_db[mask]
         put(
             f"sf_std_db_{cond}",
@@ -222,7 +235,7 @@ def channel_stats(
     series = {
         "distance_bin_m": centres[keep].tolist(),
         "los_fraction_by_distance": (los_cnt[keep] / cnt[keep]).tolist(),
-        "los_probability_by_distance": scn.p_los(centres[keep]).tolist(),
+        "los_probability_by_distance": scn.p_los(centres[keep], h_bs, h_ut).tolist(),
     }
     if png_path is not None:
         plot_power_delay_profiles(draw, png_path)
@@ -286,6 +299,50 @@ def _tdl_figures(put, draw: ChannelDraw, mask, rms, system, par: TdlCondition) -
         los = par.is_los_path
         k = 10.0 * math.log10(q[los].sum() / q[~los].sum())
         put("k_factor_db_mean", "K-factor [dB] of the mean PDP (specular / Rayleigh)", k, par.k_db)
+
+
+def _tr38901_figures(put, draw: ChannelDraw, mask, rms, system, par: Tr38901Condition) -> None:
+    """Drawn LSPs of tr38901 links against TR 38.901 Table 7.5-6 at the system's carrier: log10
+    DS mean and std, K-factor mean and std (LOS), the correlations of SF, K and log10 DS, and
+    the cluster count after the removal of weak clusters."""
+    cond = par.condition
+    system = OFDMSystem() if system is None else system
+    mu, sigma = par.ds_log10_params(system.carrier_frequency_hz)
+    lg = np.log10(draw.delay_spread_s[mask])
+    many = lg.size > 2
+    up = cond.upper()
+    put(f"ds_log10_mean_{cond}", f"log10 DS [s] mean, {up}", lg.mean(), mu)
+    put(f"ds_log10_std_{cond}", f"log10 DS [s] std, {up}", lg.std(ddof=1) if many else 0.0, sigma)
+    ok = mask & (rms > 0)
+    if ok.any():
+        put(
+            f"rms_ds_log10_mean_{cond}",
+            f"log10 rms delay spread of paths [s] mean, {up}",
+            np.log10(rms[ok]).mean(),
+        )
+    sf = draw.shadowing_db[mask]
+    corr = par.correlation  # [SF, K, DS] (LOS) or [SF, DS] (NLOS)
+
+    def rho(a, b):
+        return float(np.corrcoef(a, b)[0, 1]) if many else math.nan
+
+    if cond == "los":
+        k = draw.k_factor_db[mask]
+        put("k_factor_db_mean", "K-factor [dB] mean", k.mean(), par.k_db_mu)
+        put("k_factor_db_std", "K-factor [dB] std", k.std(ddof=1) if many else 0.0, par.k_db_sigma)
+        put("corr_ds_sf_los", "corr(log10 DS, SF), LOS", rho(lg, sf), corr[0, 2])
+        put("corr_ds_k", "corr(log10 DS, K), LOS", rho(lg, k), corr[1, 2])
+        put("corr_sf_k", "corr(SF, K), LOS", rho(sf, k), corr[0, 1])
+    else:
+        put("corr_ds_sf_nlos", "corr(log10 DS, SF), NLOS", rho(lg, sf), corr[0, 1])
+    extra = min(par.num_split, par.num_clusters) * (len(par.subcluster_offsets_c_ds) - 1)
+    clusters = draw.paths.n_paths[mask] - extra - (cond == "los")
+    put(
+        f"cluster_count_mean_{cond}",
+        f"clusters per link after the -{par.removal_threshold_db:g} dB removal, mean "
+        f"(table N = {par.num_clusters}), {up}",
+        clusters.mean(),
+    )
 
 
 def plot_power_delay_profiles(draw: ChannelDraw, path_png, n_examples: int = 6) -> Path:
