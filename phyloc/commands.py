@@ -490,14 +490,40 @@ def cmd_channel_stats(args) -> int:
 
 def _check_outputs(args, *paths) -> None:
     """Refuse, before any work, to overwrite ``--json`` or any of ``paths`` without
-    ``--force``."""
+    ``--force``, and any of them that cannot be written (a folder, a missing or read-only
+    parent), so that a command writes all its outputs or none."""
     from pathlib import Path
 
     from phyloc.reporting import OutputExistsError
 
     for p in (getattr(args, "json", None), *paths):
-        if p and Path(p).exists() and not args.force:
+        if not p:
+            continue
+        p = Path(p)
+        if p.is_dir():
+            raise PhylocError(f"cannot write {p}: it is a folder; give a file path")
+        if p.exists() and not args.force:
             raise OutputExistsError(p)
+        why = _unwritable(p)
+        if why:
+            raise PhylocError(f"cannot write {p}: {why}; nothing was written")
+
+
+def _unwritable(path) -> str:
+    """Why ``path`` could not be created or replaced by this process ("" if it can): its
+    first existing ancestor must be a writable folder (missing folders below it are made)."""
+    import os
+
+    if path.exists():
+        return "" if os.access(path, os.W_OK) else "the file is read-only"
+    parent = path.parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"{parent} is a file, not a folder"
+    if not os.access(parent, os.W_OK | os.X_OK):
+        return f"the folder {parent} is not writable"
+    return ""
 
 
 def _write_json(args, figures: dict, meta: dict, series=None) -> None:

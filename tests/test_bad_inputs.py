@@ -369,7 +369,20 @@ def _h5_dataset_beyond_memory(tmp_path):
     return ["import", str(tmp_path / "big.h5"), "-o", str(tmp_path / "o.h5")], "memory"
 
 
+def _json_under_a_file(tmp_path):
+    (tmp_path / "notes.txt").write_text("mine")
+    target = tmp_path / "notes.txt" / "stats.json"
+    return ["channel-stats", "winner2_c2", "--links", "50", "--json", str(target)], "notes.txt"
+
+
+def _json_is_a_folder(tmp_path):
+    (tmp_path / "out").mkdir()
+    return ["analyze", "belief-shift", "--json", str(tmp_path / "out")], "folder"
+
+
 FILE_CASES = [
+    ("channel-stats-json-under-a-file", _json_under_a_file),
+    ("belief-shift-json-is-a-folder", _json_is_a_folder),
     ("npz-header-claims-petabytes", _npz_header_claims_petabytes),
     ("hdf5-dataset-beyond-memory", _h5_dataset_beyond_memory),
     ("recipe-key-3000-levels-deep", _deep_dotted_key),
