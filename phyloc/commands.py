@@ -360,6 +360,7 @@ def cmd_info(args) -> int:
 
     _check_outputs(args)
     res = info(args.dataset, verify=args.verify)
+    shards = res.pop("shards", None) if isinstance(res.get("shards"), list) else None
     flat = {}
     for k, v in res.items():
         if isinstance(v, dict):
@@ -374,7 +375,10 @@ def cmd_info(args) -> int:
     figs = {
         k: v for k, v in flat.items() if isinstance(v, (int, float)) and not isinstance(v, bool)
     }
-    _write_json(args, figs, {"command": "info", "dataset": str(args.dataset), "info": flat})
+    meta = {"command": "info", "dataset": str(args.dataset), "info": flat}
+    if shards is not None:  # --verify: every shard's status and recorded digest
+        meta["shards"] = shards
+    _write_json(args, figs, meta)
     if args.verify and not res.get("ok", True):
         print(
             "phyloc: verify found a damaged master or missing or corrupt shards; repair with "
@@ -485,6 +489,50 @@ def cmd_channel_stats(args) -> int:
         "square_m": args.square,
     }
     _write_json(args, res["figures"], meta, res.get("series"))
+    return 0
+
+
+def cmd_channel_compare(args) -> int:
+    """``phyloc channel-compare``: phyloc's TR 38.901 scenarios against Sionna's, one table per
+    scenario and LOS state, a figure and (``--json``) every row."""
+    from pathlib import Path
+
+    from phyloc.channels import sionna_compare as sc
+
+    names = sc.check_arguments(args.scenarios, args.links, args.carrier_frequency_hz)
+    label = "all" if args.scenarios == ["all"] else "_".join(names)
+    png = Path(args.png or f"channel_compare_{label}.png")
+    _check_outputs(args, png)
+    sc.require_sionna()  # one line naming pip install sionna, before any work
+    t0 = time.perf_counter()
+    results = []
+    for name in names:
+        res = sc.compare(
+            name,
+            n_links=args.links,
+            carrier_frequency_hz=args.carrier_frequency_hz,
+            seed=args.seed,
+        )
+        print(sc.format_comparison(res), end="\n\n", flush=True)
+        results.append(res)
+    counts = sc.verdict_counts(results)
+    print(
+        f"{len(names)} scenario(s): {counts['agrees']} statistics agree, {counts['DIFFERS']} "
+        f"differ, {counts['—']} without a test (level {sc.ALPHA:g} per statistic); "
+        f"{time.perf_counter() - t0:.0f} s"
+    )
+    sc.plot_comparison(results, png)
+    print(f"wrote {png}")
+    meta = {
+        "command": "channel-compare",
+        "scenarios": names,
+        "links": args.links,
+        "carrier_frequency_hz": args.carrier_frequency_hz,
+        "seed": args.seed,
+        "seconds": time.perf_counter() - t0,
+    }
+    figures, meta, series = sc.to_json(results, meta)
+    _write_json(args, figures, meta, series)
     return 0
 
 

@@ -92,7 +92,19 @@ def test_generate_info_and_verify_from_the_command_line(tmp_path, capsys, monkey
     data = bytearray(shard.read_bytes())
     data[len(data) // 2] ^= 0xFF  # flip a bit in the middle of the shard
     shard.write_bytes(bytes(data))
-    assert main(["info", str(h5), "--verify"]) == 1
+    assert main(["info", str(h5), "--verify", "--json", str(tmp_path / "bad.json")]) == 1
+    # per shard: its status and the digest the master records, which the sound file has
+    import hashlib
+
+    shards = json.loads((tmp_path / "bad.json").read_text())["meta"]["shards"]
+    assert [x["index"] for x in shards] == [0, 1]
+    by_file = {x["file"].split("/")[-1]: x for x in shards}
+    assert by_file[shard.name]["status"] == "corrupt" and by_file[shard.name]["reason"]
+    (other,) = [x for x in shards if x["file"].split("/")[-1] != shard.name]
+    assert other["status"] == "ok" and other["reason"] == ""
+    other_file = shard.parent / other["file"].split("/")[-1]
+    assert other["sha256"] == hashlib.sha256(other_file.read_bytes()).hexdigest()
+    assert by_file[shard.name]["sha256"] != hashlib.sha256(shard.read_bytes()).hexdigest()
     assert main(["generate", str(recipe), "-o", str(h5), "--resume"]) == 0
     assert main(["info", str(h5), "--verify"]) == 0
     assert main(["evaluate", str(recipe)]) == 2  # a dataset recipe is not an experiment

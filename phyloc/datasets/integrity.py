@@ -54,21 +54,28 @@ def verify_dataset(path) -> dict:
     dict
         ``verified`` (True), ``ok`` (every shard complete and sound), ``shards_ok``,
         ``missing_shards`` (not complete in the master, or file absent), ``corrupt_shards``
-        (lists of shard indices) and ``problems`` (shard index → reason).
+        (lists of shard indices), ``problems`` (shard index → reason) and ``shards``: per
+        shard ``index``, ``file``, ``status`` (``"ok"``, ``"missing"`` or ``"corrupt"``),
+        ``sha256`` (the file digest the master records, which a sound file has) and
+        ``reason`` (empty when sound).
     """
     with open_dataset(path) as ds, _master_read(ds.path):
         fp = sc._text(ds.file.attrs["recipe_fingerprint"])
         arrays = [sc.spec_of(n) for n in ds.array_names]
         sh = ds.shards
-        missing, corrupt, problems, ok = [], [], {}, 0
+        missing, corrupt, problems, ok, each = [], [], {}, 0, []
         master = check_master(ds)
         if master:
             problems["master"] = master
         for j in range(ds.n_shards):
             file = ds.path.parent / sh["file"][j]
+            entry = {"index": j, "file": sc._text(sh["file"][j])}
+            entry["sha256"] = sc._text(sh["file_sha256"][j])
+            each.append(entry)
             if not sh["complete"][j]:
                 missing.append(j)
                 problems[j] = "not complete (generation unfinished or failed)"
+                entry.update(status="missing", reason=problems[j])
                 continue
             rec, kind, reason = sc.check_shard(
                 file,
@@ -81,9 +88,11 @@ def verify_dataset(path) -> dict:
             )
             if rec is not None:
                 ok += 1
+                entry.update(status="ok", reason="")
                 continue
             (missing if kind == "missing" else corrupt).append(j)
             problems[j] = reason
+            entry.update(status="missing" if kind == "missing" else "corrupt", reason=reason)
     return {
         "verified": True,
         "ok": not missing and not corrupt and not master,
@@ -92,6 +101,7 @@ def verify_dataset(path) -> dict:
         "missing_shards": missing,
         "corrupt_shards": corrupt,
         "problems": problems,
+        "shards": each,
     }
 
 
