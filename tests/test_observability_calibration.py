@@ -128,3 +128,21 @@ def test_an_informed_only_run_reports_and_plots_its_own_rows(tmp_path, monkeypat
         warnings.simplefilter("error")  # e.g. "No artists with labels found to put in legend"
         lx.plot(res, tmp_path / "f.png")
     assert (tmp_path / "f.png").stat().st_size > 0
+
+
+def test_a_warning_names_exactly_the_methods_whose_beliefs_are_off(monkeypatch):
+    """The summary warns for a method at the largest size exactly when its error/belief ratio
+    (from the median) leaves [0.67, 1.5], and says which key to set when beliefs are too
+    narrow; checked on a run, and on the same figures with the ratios moved in and out."""
+    from phyloc.config import load_recipe
+
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    res = lx.LOCALIZATION.run(load_recipe(INFORMED_ONLY), progress=False)
+    f = res["figures"]
+    key = "corr.c2_informed.agents_4.error_to_belief_ratio_median"
+    for ratio, warned in ((4.0, True), (1.0, False), (0.3, True), (1.49, False)):
+        f[key] = ratio
+        lines = [ln for ln in lx.summary_lines(res) if ln.startswith("warning: corr")]
+        assert bool(lines) == warned, ratio
+        if ratio > 1.5:
+            assert "model_error_m" in lines[0]

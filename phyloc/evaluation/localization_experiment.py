@@ -635,6 +635,41 @@ def summary_headers(results: dict):
     return [*SUMMARY_HEADERS, *[f"{n} agents" for n in results["meta"]["agents"]]]
 
 
+#: The error/belief ratios (from the median) inside which a method's beliefs are called
+#: calibrated; outside, ``phyloc evaluate`` prints a warning.
+CALIBRATED_RATIO = (0.67, 1.5)
+
+
+def belief_warnings(figures: dict, methods, tag: str, n: int) -> list[str]:
+    """Warnings for the methods whose beliefs are much narrower or wider than their errors at
+    ``n`` agents (``error_to_belief_ratio_median`` outside :data:`CALIBRATED_RATIO`), with
+    what to set.
+
+    >>> f = {"dipnet.c2.agents_12.error_to_belief_ratio_median": 4.0,
+    ...      "corr.c2.agents_12.error_to_belief_ratio_median": 1.1}
+    >>> [w[:52] for w in belief_warnings(f, ["dipnet", "corr"], "c2", 12)]
+    ['warning: dipnet at 12 agents (c2): its error is 4x i']
+    """
+    lo, hi = CALIBRATED_RATIO
+    out = []
+    for m in methods:
+        r = figures.get(f"{m}.{tag}.agents_{n}.error_to_belief_ratio_median", math.nan)
+        if not math.isfinite(r) or lo <= r <= hi:
+            continue
+        side = "narrower" if r > hi else "wider"
+        out.append(
+            f"warning: {m} at {n} agents ({tag}): its error is {r:.2g}x its belief's spread "
+            f"(beliefs {side} than the errors; calibrated is {lo}-{hi}). "
+            + (
+                "If the channel has unresolved multipath, set [localization] model_error_m "
+                "(the shipped C2 recipes use 0.3 m, D1 0.55 m; docs: guide/experiments)"
+                if r > hi
+                else "Its priors or model error may be wider than the links support"
+            )
+        )
+    return out
+
+
 def summary_lines(results: dict):
     """ESS and runtime lines."""
     f, meta = results["figures"], results["meta"]
@@ -661,6 +696,7 @@ def summary_lines(results: dict):
             out.append(
                 f"{tag}, {n} agents, error/belief ratio sqrt(NEES/dim) (from the median): {ratio}"
             )
+            out += belief_warnings(f, meta["methods"], tag, n)
         for k in meta["agents"]:
             frac = f.get(f"{tok}.agents_{k}.unobservable_pair_fraction", 0.0)
             for init in meta["inits"] if frac > 0 else ():
