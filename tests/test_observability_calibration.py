@@ -4,6 +4,7 @@ import warnings
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from phyloc.evaluation import front_end
 from phyloc.evaluation import localization_experiment as lx
@@ -146,3 +147,31 @@ def test_a_warning_names_exactly_the_methods_whose_beliefs_are_off(monkeypatch):
         assert bool(lines) == warned, ratio
         if ratio > 1.5:
             assert "model_error_m" in lines[0]
+
+
+def test_a_single_size_run_draws_points_and_fitted_cdfs(monkeypatch):
+    """One network size: the RMSE panel has the start and every method along its x axis, each
+    a point with its interval (no line over one size), and the CDF panel's x axis ends a
+    little beyond where the CDFs reach 0.99, not at the end of the error grid."""
+    from phyloc.config import load_recipe
+    from phyloc.evaluation import localization_figures as lf
+
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    res = lx.LOCALIZATION.run(load_recipe(INFORMED_ONLY), progress=False)
+    drawn = {}
+    monkeypatch.setattr(lf, "save_figure", lambda fig, path: drawn.setdefault("fig", fig))
+    lf.plot(res, "unused.png")
+    rmse_ax, cdf_ax = drawn["fig"].axes[0], drawn["fig"].axes[2]
+    labels = [t.get_text() for t in rmse_ax.get_xticklabels()]
+    assert labels == ["start\n(centralized)", *res["meta"]["methods"]]
+    assert not any(
+        len(line.get_xdata()) > 1
+        for line in rmse_ax.get_lines()
+        if line.get_marker() in ("o", "*") and line.get_linestyle() != "None"
+    )
+    grid = np.asarray(res["series"]["cdf_grid_m"])
+    right = cdf_ax.get_xlim()[1]
+    cdf = np.asarray(res["series"]["corr.c2_informed.agents_4.error_cdf"])
+    above = np.flatnonzero(cdf >= 0.99)
+    reach = grid[above[0]] if above.size else grid[-1]
+    assert right == pytest.approx(1.15 * reach)

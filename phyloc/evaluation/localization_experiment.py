@@ -661,8 +661,9 @@ def belief_warnings(figures: dict, methods, tag: str, n: int) -> list[str]:
             f"warning: {m} at {n} agents ({tag}): its error is {r:.2g}x its belief's spread "
             f"(beliefs {side} than the errors; calibrated is {lo}-{hi}). "
             + (
-                "If the channel has unresolved multipath, set [localization] model_error_m "
-                "(the shipped C2 recipes use 0.3 m, D1 0.55 m; docs: guide/experiments)"
+                "Its reported covariances understate its error: a larger [localization] "
+                "model_error_m widens the likelihood of links with unresolved multipath "
+                "(docs: guide/experiments)"
                 if r > hi
                 else "Its priors or model error may be wider than the links support"
             )

@@ -29,6 +29,56 @@ def _reads_tables(name: str) -> bool:
     return method is not None and method.inputs == "tables"
 
 
+def _rmse_points(ax, f, meta, tok, n) -> None:
+    """The RMSE panel of a run at one network size: per start and method a point with its 95 %
+    interval as an error bar, the methods along the x axis (the start first)."""
+    names = ["start", *meta["methods"]]
+    for k, init in enumerate(meta["inits"]):
+        tag = tok + INITS[init]
+        shift = (k - (len(meta["inits"]) - 1) / 2) * 0.15
+        for i, m in enumerate(names):
+            name = f"{m}.{tag}.agents_{n}.framework_rmse_m"
+            y = f.get(name, np.nan)
+            if y is None or not np.isfinite(y):
+                continue
+            lo, hi = f.get(name + ".ci_low"), f.get(name + ".ci_high")
+            err = None
+            if lo is not None and hi is not None and np.isfinite(lo) and np.isfinite(hi):
+                err = [[max(y - lo, 0.0)], [max(hi - y, 0.0)]]
+            ax.errorbar(
+                [i + shift],
+                [y],
+                yerr=err,
+                fmt="*" if m == "start" else "o",
+                color="k" if m == "start" else f"C{i - 1}",
+                mfc="none" if init != "truth_free" else None,
+                capsize=3,
+            )
+    ax.set_xticks(range(len(names)))
+    ax.set_xticklabels(["start\n(centralized)", *meta["methods"]], rotation=30, fontsize=7)
+    ax.set_ylabel("RMSE [m]")
+    starts = ", ".join(
+        f"{init}: {'filled' if init == 'truth_free' else 'hollow'}" for init in meta["inits"]
+    )
+    ax.set_title(
+        f"{tok}, {n} agents: framework distance RMSE, 95 % intervals ({starts})", fontsize=8
+    )
+    ax.grid(True, axis="y", alpha=0.3)
+
+
+def _cdf_reach(ax) -> float:
+    """An x limit for a CDF panel: a little beyond where every drawn CDF reaches 0.99 (the
+    panel then shows the errors there are, not the grid's whole range)."""
+    reach = 0.0
+    for line in ax.get_lines():
+        x, y = np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
+        if x.size == 0:
+            continue
+        above = np.flatnonzero(y >= 0.99)
+        reach = max(reach, x[above[0]] if above.size else x[-1])
+    return 1.15 * reach if reach > 0 else 1.0
+
+
 def plot(results: dict, path) -> None:
     """DiPNet Fig. 5 layout from results only: RMSE vs agents per scenario, CDFs, ESS."""
     f, ser, meta = results["figures"], results["series"], results["meta"]
@@ -41,7 +91,9 @@ def plot(results: dict, path) -> None:
     agents = meta["agents"]
     for j, tok in enumerate(toks):
         ax = axes[0, j]
-        for init in meta["inits"]:
+        if len(agents) == 1:  # one network size: each method a point with its interval
+            _rmse_points(ax, f, meta, tok, agents[0])
+        for init in meta["inits"] if len(agents) > 1 else ():
             tag = tok + INITS[init]
             ls = "-" if init == "truth_free" else ("--" if init == "informed" else ":")
             for i, m in enumerate(("start", *meta["methods"])):
@@ -60,11 +112,12 @@ def plot(results: dict, path) -> None:
                     label=f"{label} ({init})",
                 )
                 draw_interval(ax, agents, f, names, color)
-        ax.set_title(f"{tok}: framework distance RMSE (bands: 95 % intervals)")
-        ax.set_xlabel("number of agents")
-        ax.set_ylabel("RMSE [m]")
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=6, ncol=2)
+        if len(agents) > 1:
+            ax.set_title(f"{tok}: framework distance RMSE (bands: 95 % intervals)")
+            ax.set_xlabel("number of agents")
+            ax.set_ylabel("RMSE [m]")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=6, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
         ax = axes[1, j]
         init = "truth_free" if "truth_free" in meta["inits"] else next(iter(meta["inits"]))
         tag = tok + INITS[init]
@@ -75,6 +128,7 @@ def plot(results: dict, path) -> None:
                 k = f"{m}.{tag}.agents_{n}.error_cdf"
                 if k in ser:
                     ax.plot(ser["cdf_grid_m"], ser[k], ls, color=f"C{i}", label=f"{m}, {n} agents")
+        ax.set_xlim(0.0, _cdf_reach(ax))
         ax.set_title(f"{tok} ({init.replace('_', '-')} start): error CDF")
         ax.set_xlabel("absolute framework distance error [m]")
         ax.set_ylabel("CDF")
