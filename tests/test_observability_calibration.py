@@ -1,11 +1,13 @@
 """The localization experiment's observability rule and NEES calibration figures."""
 
+import math
 import warnings
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from phyloc.config import load_recipe
 from phyloc.evaluation import front_end
 from phyloc.evaluation import localization_experiment as lx
 
@@ -175,3 +177,41 @@ def test_a_single_size_run_draws_points_and_fitted_cdfs(monkeypatch):
     above = np.flatnonzero(cdf >= 0.99)
     reach = grid[above[0]] if above.size else grid[-1]
     assert right == pytest.approx(1.15 * reach)
+
+
+WITH_ANCHORS = (
+    INFORMED_ONLY.replace("tx_power_dbm = -40.0", "tx_power_dbm = 0.0")
+    .replace("region_m = [80.0, 80.0]", "region_m = [80.0, 80.0]\nanchors = 4")
+    .replace('inits = ["informed"]', 'inits = ["truth_free"]')
+)
+
+
+def test_with_anchors_absolute_position_errors_and_a_map(tmp_path, monkeypatch):
+    """A network with anchors (its frame then absolute) reports the absolute position RMSE
+    of every method and the start, equal to the RMS of the stored per-agent errors, prints
+    it, and draws the map figure beside the main one; an anchor-free run has none of it."""
+    import json
+
+    from phyloc.cli import main
+
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    recipe = tmp_path / "a.toml"
+    recipe.write_text(WITH_ANCHORS)
+    assert main(["evaluate", str(recipe), "--out", str(tmp_path / "o")]) == 0
+    doc = json.loads((tmp_path / "o" / "results.json").read_text())
+    f, ser = doc["figures"], doc["series"]
+    for m in ("start", "corr"):
+        name = f"{m}.c2.agents_4.position_rmse_m"
+        u = ser[name + ".units"]
+        assert f[name] == pytest.approx(math.sqrt(sum(u["num"]) / sum(u["den"])), rel=1e-12)
+        assert sum(u["den"]) == 2 * 4  # 2 realizations x 4 agents, one snapshot
+    est = np.asarray(ser["corr.c2.agents_4.map_estimates"])
+    truth = np.asarray(ser["c2.agents_4.map_truth"])
+    anchor = np.asarray(ser["c2.agents_4.map_is_anchor"], bool)
+    assert est.shape == (4, 2) and truth.shape == (8, 2) and anchor.sum() == 4
+    (png,) = (tmp_path / "o").glob(f"{doc['meta']['recipe']}_map.png")
+    assert png.stat().st_size > 1000
+    plain = lx.LOCALIZATION.run(
+        load_recipe(WITH_ANCHORS.replace("\nanchors = 4", "")), progress=False
+    )
+    assert not any("position_rmse" in k for k in plain["figures"])

@@ -301,6 +301,9 @@ def localize_realization(real, system, rspec, lspec, methods, inits, seed_seq, k
         "los": np.concatenate([np.asarray(d.los, bool) for d in real.channels]),
         "observable": None if any(o is None for o in observable) else np.concatenate(observable),
         "neighbours": real.links[0].shape[0] / max(net.n_agents, 1),
+        # with anchors, the first snapshot's true positions (for a map of the estimates)
+        "map_truth": np.asarray(net.positions[0]) if bool(np.any(net.is_anchor)) else None,
+        "map_is_anchor": np.asarray(net.is_anchor, bool),
         "methods": {label: name for label, name, _ in plan},
         "dim": net.dim,
     }
@@ -320,6 +323,13 @@ def localize_realization(real, system, rspec, lspec, methods, inits, seed_seq, k
                     init, net, real.links[0], corr0, lspec, Q, rng_p
                 )
                 stage.setdefault(f"start_{init}", time.perf_counter() - clock)
+                if centers is not None and len(meas.anchor_nodes):
+                    out.setdefault(
+                        f"start|{init}|pos_err",
+                        np.linalg.norm(
+                            np.asarray(centers) - net.positions[0][net.agent_index], axis=-1
+                        ),
+                    )
                 if f"start|{init}|err" not in out:  # the start itself, as a method would be
                     out[f"start|{init}|err"] = (
                         np.full(0, np.nan)
@@ -411,6 +421,13 @@ def _run_outputs(key, res, meas, truth, pairs=None):
             for t, (X, lw) in diag.get("particles_at", {}).items()
         },
     }
+    if len(meas.anchor_nodes):  # anchors fix the frame: the absolute position errors too
+        out[key + "|pos_err"] = np.concatenate(
+            [
+                np.linalg.norm(np.asarray(res.estimates[t]) - truth[t][agents], axis=-1)
+                for t in range(T)
+            ]
+        )
     if "ess_history" in diag:
         ess = diag["ess_history"][0]
         out[key + "|ess"], out[key + "|ess_min"] = ess.mean(axis=1), float(ess.min())

@@ -412,6 +412,10 @@ def _aggregate(keys, results, exp, tokens):
                 ]
                 start = Pooled.rmse([r.get(f"start|{init}|err", np.full(0, np.nan)) for r in runs])
                 figures[f"start.{tag}.agents_{n}.framework_rmse_m"] = start
+                if all(f"start|{init}|pos_err" in r for r in runs):
+                    figures[f"start.{tag}.agents_{n}.position_rmse_m"] = Pooled.rmse(
+                        [r[f"start|{init}|pos_err"] for r in runs]
+                    )
                 und = [r.get(f"start|{init}|undetermined") for r in runs]
                 if und and all(u is not None for u in und):
                     figures[f"start.{tag}.agents_{n}.undetermined_agent_fraction"] = Pooled.mean(
@@ -431,6 +435,23 @@ def _aggregate(keys, results, exp, tokens):
                     figures[base + ".framework_rmse_m"] = Pooled.rmse(
                         [r[key + "|err"] for r in runs]
                     )
+                    if key + "|pos_err" in runs[0]:  # anchors: absolute position errors
+                        figures[base + ".position_rmse_m"] = Pooled.rmse(
+                            [r[key + "|pos_err"] for r in runs]
+                        )
+                        pos = np.concatenate([r[key + "|pos_err"] for r in runs])
+                        series[base + ".position_error_cdf"] = np.searchsorted(
+                            np.sort(pos), CDF_GRID_M, side="right"
+                        ) / max(pos.size, 1)
+                        if n == max(exp.agents) and runs[0].get("map_truth") is not None:
+                            # the map panel: the first realization's first snapshot
+                            series[base + ".map_estimates"] = np.round(
+                                runs[0][key + "|estimates"][0], 3
+                            )
+                            series[f"{tok}.agents_{n}.map_truth"] = np.round(
+                                runs[0]["map_truth"], 3
+                            )
+                            series[f"{tok}.agents_{n}.map_is_anchor"] = runs[0]["map_is_anchor"]
                     figures[base + ".outlier_fraction"] = Pooled.mean(
                         [np.abs(r[key + "|err"]) > OUTLIER_M for r in runs]
                     )
@@ -698,6 +719,16 @@ def summary_lines(results: dict):
                 f"{tag}, {n} agents, error/belief ratio sqrt(NEES/dim) (from the median): {ratio}"
             )
             out += belief_warnings(f, meta["methods"], tag, n)
+            pos = [
+                f"{m} {with_interval(f, f'{m}.{tag}.agents_{n}.position_rmse_m')}"
+                for m in ("start", *meta["methods"])
+                if f"{m}.{tag}.agents_{n}.position_rmse_m" in f
+            ]
+            if pos:
+                out.append(
+                    f"{tag}, {n} agents, absolute position RMSE [m] (anchors fix the frame): "
+                    + ", ".join(pos)
+                )
         for k in meta["agents"]:
             frac = f.get(f"{tok}.agents_{k}.unobservable_pair_fraction", 0.0)
             for init in meta["inits"] if frac > 0 else ():

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from phyloc.localization import METHODS as REGISTRY
-from phyloc.reporting import draw_interval, new_figure, save_figure
+from phyloc.reporting import draw_interval, new_figure, save_figure, with_interval
 
 INITS = {"truth_free": "", "informed": "_informed", "gauge": "_gauge"}
 """Initializations and the suffix each gives the scenario token in figure names."""
@@ -173,6 +173,68 @@ def plot(results: dict, path) -> None:
     save_figure(fig, path)
     if len(agents) > 1 and any(k.endswith("_link_exponent") for k in f):
         plot_cost(results, Path(path).with_name(Path(path).stem + "_cost.png"))
+    if any(k.endswith(".map_estimates") for k in ser):
+        plot_map(results, Path(path).with_name(Path(path).stem + "_map.png"))
+
+
+def plot_map(results: dict, path) -> None:
+    """``<recipe>_map.png`` (networks with anchors, whose frame is then absolute): per scenario
+    token, the CDF of the absolute position error at the largest size, and a map of the first
+    realization's estimates against the true positions (anchors as triangles)."""
+    f, ser, meta = results["figures"], results["series"], results["meta"]
+    toks = [
+        t
+        for t in meta["scenarios"]
+        if any(k.startswith(f"{t}.") and k.endswith(".map_truth") for k in ser)
+    ]
+    n = max(meta["agents"])
+    init = "truth_free" if "truth_free" in meta["inits"] else next(iter(meta["inits"]))
+    fig, axes = new_figure(len(toks), 2, squeeze=False, size=(11.0, 4.6 * len(toks)))
+    for j, tok in enumerate(toks):
+        tag = tok + INITS[init]
+        ax, axm = axes[j]
+        truth = np.asarray(ser[f"{tok}.agents_{n}.map_truth"], float)
+        anchor = np.asarray(ser[f"{tok}.agents_{n}.map_is_anchor"], bool)
+        for i, m in enumerate(meta["methods"]):
+            base = f"{m}.{tag}.agents_{n}"
+            if base + ".position_error_cdf" in ser:
+                label = f"{m}: RMSE {with_interval(f, base + '.position_rmse_m')} m"
+                ax.plot(
+                    ser["cdf_grid_m"], ser[base + ".position_error_cdf"], color=f"C{i}", label=label
+                )
+            if base + ".map_estimates" in ser:
+                est = np.asarray(ser[base + ".map_estimates"], float)
+                axm.scatter(
+                    est[:, 0], est[:, 1], s=14, marker="os^vdx"[i % 6], color=f"C{i}", label=m
+                )
+                for a, b in zip(est, truth[~anchor], strict=False):
+                    axm.plot([a[0], b[0]], [a[1], b[1]], color=f"C{i}", lw=0.5, alpha=0.5)
+        axm.scatter(
+            truth[~anchor, 0],
+            truth[~anchor, 1],
+            s=40,
+            facecolors="none",
+            edgecolors="k",
+            label="true agents",
+        )
+        axm.scatter(
+            truth[anchor, 0], truth[anchor, 1], s=60, marker="^", color="k", label="anchors"
+        )
+        ax.set_xlim(0.0, _cdf_reach(ax))
+        ax.set(
+            xlabel="absolute position error [m]",
+            ylabel="CDF",
+            title=f"{tok}, {n} agents ({init.replace('_', '-')} start)",
+        )
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=6, loc="lower right")
+        axm.set(
+            xlabel="x [m]", ylabel="y [m]", title=f"{tok}: first realization, estimates and truth"
+        )
+        axm.set_aspect("equal", adjustable="datalim")
+        axm.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    fig.suptitle(f"Absolute positions (anchors fix the frame) — {meta['recipe']}")
+    save_figure(fig, path)
 
 
 def plot_cost(results: dict, path) -> None:
