@@ -23,6 +23,9 @@ Commands:
 * ``phyloc channel-stats SCENARIO [--square SIDE_M] [--links N] [--seed S] [--png PATH]
   [--json PATH]``: draw links of a channel scenario and compare realized statistics with its
   table.
+* ``phyloc channel-compare SCENARIO... [--links N] [--carrier-frequency-hz F] [--seed S]
+  [--png PATH] [--json PATH] [--force]``: draw TR 38.901 scenarios in phyloc and in NVIDIA Sionna
+  (optional dependency) and compare their statistics.
 * ``phyloc analyze cci SCENARIO... | belief-shift [--json PATH]``: DiPNet Figs. 2 and 3 from
   flags (presets: they build a ``cci`` / ``belief_shift`` recipe and run that experiment).
 
@@ -281,6 +284,39 @@ COMMANDS = [
             ),
             SEED,
             _png("channel_stats_<scenario>.png: example power-delay profiles"),
+            JSON,
+            _force("--json/--png file"),
+        ],
+    ),
+    (
+        "channel-compare",
+        "draw TR 38.901 scenarios in phyloc and in NVIDIA Sionna (pip install sionna) and "
+        "compare their statistics",
+        "cmd_channel_compare",
+        [
+            _arg(
+                "scenarios",
+                nargs="+",
+                metavar="SCENARIO",
+                help="tr38901_umi, tr38901_uma, tr38901_rma, tr38901_inh_mixed, tr38901_inh_open, "
+                "tr38901_inf_sl, _dl, _sh, _dh, tdl_a ... tdl_e, or all",
+            ),
+            _arg(
+                "--links",
+                type=int,
+                default=4000,
+                metavar="N",
+                help="links per draw and LOS state (default 4000)",
+            ),
+            _arg(
+                "--carrier-frequency-hz",
+                type=float,
+                default=3.5e9,
+                metavar="F",
+                help="carrier frequency [Hz] of both packages (default 3.5e9)",
+            ),
+            SEED,
+            _png("channel_compare_<scenarios>.png"),
             JSON,
             _force("--json/--png file"),
         ],

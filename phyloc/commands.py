@@ -521,6 +521,7 @@ def cmd_channel_compare(args) -> int:
         f"differ, {counts['—']} without a test (level {sc.ALPHA:g} per statistic); "
         f"{time.perf_counter() - t0:.0f} s"
     )
+    png.parent.mkdir(parents=True, exist_ok=True)
     sc.plot_comparison(results, png)
     print(f"wrote {png}")
     meta = {
