@@ -172,11 +172,6 @@ def test_umi_mean_power_delay_profiles_agree(umi, cond):
         assert _row(umi, cond, key)["verdict"] == "agrees", key
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="phyloc's SF is a loss drawn with Table 7.5-6's correlations, which are those of SF "
-    "as a gain: corr(received power, lgDS) has the opposite sign of Sionna's",
-)
 @pytest.mark.parametrize("cond", ["los", "nlos"])
 def test_umi_shadow_fading_correlates_with_the_delay_spread_as_in_sionna(umi, cond):
     assert _row(umi, cond, "corr_sf_ds")["verdict"] == "agrees"

@@ -29,7 +29,8 @@ public interface; a figure is omitted when its condition has no links in the dra
                                table: the file's ``delay_spread_s`` (``*_nlos`` likewise)
 ``tap_power_db_max_dev_los``   tdl model: largest ``|10·log10(mean power / table power)|``
                                over the taps [dB] (``*_nlos`` likewise)
-``corr_ds_sf_los``             tr38901 model: correlation of log10 DS and SF over LOS links;
+``corr_ds_sf_los``             tr38901 model: correlation of log10 DS and SF (as a gain, the
+                               received power over the path loss) over LOS links;
                                table: TR 38.901 Table 7.5-6 (``corr_ds_k``, ``corr_sf_k``:
                                LOS only; ``corr_ds_sf_nlos``)
 ``cluster_count_mean_los``     tr38901 model: clusters per link after the removal of those
@@ -320,7 +321,7 @@ def _tr38901_figures(put, draw: ChannelDraw, mask, rms, system, par: Tr38901Cond
             f"log10 rms delay spread of paths [s] mean, {up}",
             np.log10(rms[ok]).mean(),
         )
-    sf = draw.shadowing_db[mask]
+    sf = -draw.shadowing_db[mask]  # SF as a gain, as Table 7.5-6 correlates it
     corr = par.correlation  # [SF, K, DS] (LOS) or [SF, DS] (NLOS)
 
     def rho(a, b):

@@ -882,7 +882,10 @@ def draw_tr38901(
     # step 4: [SF, K, DS] (LOS) or [SF, DS] (NLOS) with the Table 7.5-6 cross-correlation
     x = rng.standard_normal((n, p.cholesky.shape[0])) @ p.cholesky.T
     mu, sigma = p.ds_log10_params(fc_hz)
-    sf = sf_std * x[:, 0]
+    # Table 7.5-6 correlates SF as a gain (the received power is P_tx − PL + SF: Sec. 7.5
+    # step 12 scales the channel by sqrt(10^(SF/10))); phyloc's draw holds the loss added to
+    # the path loss, so the drawn gain enters with its sign flipped
+    sf = -sf_std * x[:, 0]
     ds = 10.0 ** (mu + sigma * x[:, -1])
     k_db = p.k_db_mu + p.k_db_sigma * x[:, 1] if is_los else np.full(n, math.nan)
 
