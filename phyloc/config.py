@@ -144,7 +144,7 @@ def load_recipe(source, *, kinds=None) -> Recipe:
             f"{where}nests arrays or tables too deeply to read (a recipe nests at most "
             f"{MAX_DEPTH} levels)"
         ) from None
-    deep = _too_deep(doc)
+    deep = too_deep(doc)
     if deep is not None:
         raise RecipeError(
             f"{where}key {deep} nests more than {MAX_DEPTH} levels of tables or arrays; "
@@ -157,7 +157,7 @@ def load_recipe(source, *, kinds=None) -> Recipe:
 MAX_DEPTH = 16
 
 
-def _too_deep(doc: dict) -> str | None:
+def too_deep(doc: dict) -> str | None:
     """The dotted key (shortened) of the first value nested deeper than :data:`MAX_DEPTH`
     tables or arrays, or None; iterative, so any depth is measured without recursion."""
     stack = [(doc, ())]

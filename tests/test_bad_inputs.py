@@ -380,7 +380,13 @@ def _json_is_a_folder(tmp_path):
     return ["analyze", "belief-shift", "--json", str(tmp_path / "out")], "folder"
 
 
+def _deep_channel_file(tmp_path):
+    (tmp_path / "deep_channel.toml").write_text(".".join(["a"] * 3000) + " = 1\n")
+    return ["channel-stats", str(tmp_path / "deep_channel.toml")], "deep_channel.toml"
+
+
 FILE_CASES = [
+    ("channel-file-3000-levels-deep", _deep_channel_file),
     ("channel-stats-json-under-a-file", _json_under_a_file),
     ("belief-shift-json-is-a-folder", _json_is_a_folder),
     ("npz-header-claims-petabytes", _npz_header_claims_petabytes),

@@ -547,11 +547,21 @@ def parse_scenario(doc: dict, label: str) -> Scenario:
 
 
 def _read_toml(path, label: str) -> dict:
+    from phyloc.config import MAX_DEPTH, too_deep
+
     try:
         with open(path, "rb") as f:
-            return tomllib.load(f)
+            doc = tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise ValidationError(label, "<file>", f"not valid TOML: {e}") from None
+    except RecursionError:  # arrays or inline tables nested thousands deep
+        raise ValidationError(label, "<file>", "nests arrays or tables too deeply") from None
+    deep = too_deep(doc)
+    if deep is not None:
+        raise ValidationError(
+            label, deep, f"a channel file nests at most {MAX_DEPTH} levels of tables or arrays"
+        )
+    return doc
 
 
 def load_file(path) -> Scenario:
