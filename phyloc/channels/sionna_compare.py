@@ -652,6 +652,26 @@ def _corr_row(key, label, xa, ya, xb, yb, note="") -> dict:
     return _row(key, label, ra, rb, "fisher z", tol, _p_of_z(z), abs(z) <= Z_CRIT, note)
 
 
+def _realized_rows(pr: dict, sr: dict, what: str, first: str) -> list:
+    """The two KS rows of a realized impulse response: the RMS delay spread of its paths and
+    the power share of its first path (``first``: "path" or "tap")."""
+    return [
+        _ks_row(
+            "real.rms_delay",
+            f"{what}: RMS delay spread of paths [ns], KS",
+            pr["rms_delay_s"],
+            sr["rms_delay_s"],
+            1e9,
+        ),
+        _ks_row(
+            "real.first_share",
+            f"{what}: power share of the first {first}, KS",
+            pr["first_share"],
+            sr["first_share"],
+        ),
+    ]
+
+
 def _ks_row(key, label, a, b, scale=1.0, note="") -> dict:
     a, b = np.asarray(a, float), np.asarray(b, float)
     a, b = a[np.isfinite(a)], b[np.isfinite(b)]
@@ -845,23 +865,7 @@ def _state_rows(cond: str, ph: dict, si: dict, scn) -> tuple[list, dict]:
         )
     )
     pr, sr = ph["real"], si["real"]
-    rows.append(
-        _ks_row(
-            "real.rms_delay",
-            "realized CIR: RMS delay spread of paths [ns], KS",
-            pr["rms_delay_s"],
-            sr["rms_delay_s"],
-            1e9,
-        )
-    )
-    rows.append(
-        _ks_row(
-            "real.first_share",
-            "realized CIR: power share of the first path, KS",
-            pr["first_share"],
-            sr["first_share"],
-        )
-    )
+    rows += _realized_rows(pr, sr, "realized CIR", "path")
     rows.append(
         _mean_row(
             "real.gain_mean", "realized P_rx / (P_tx − PL): mean [dB]", ph["gain_db"], si["gain_db"]
@@ -987,23 +991,7 @@ def _tdl_rows(ph: dict, si: dict) -> tuple[list, dict]:
             )
         )
     pr, sr = ph["real"], si["real"]
-    rows.append(
-        _ks_row(
-            "real.rms_delay",
-            "realized: RMS delay spread of paths [ns], KS",
-            pr["rms_delay_s"],
-            sr["rms_delay_s"],
-            1e9,
-        )
-    )
-    rows.append(
-        _ks_row(
-            "real.first_share",
-            "realized: power share of the first tap, KS",
-            pr["first_share"],
-            sr["first_share"],
-        )
-    )
+    rows += _realized_rows(pr, sr, "realized", "tap")
     rows.append(
         _mean_row("real.gain_mean", "wideband gain G [dB]: mean", ph["gain_db"], si["gain_db"])
     )
