@@ -78,7 +78,7 @@ from phyloc.phy.system import OFDMSystem
 INSTALL = 'pip install sionna (or pip install "phyloc[sionna]")'
 #: Two-sided level of every Monte Carlo test.
 ALPHA = 1e-3
-#: Critical |z| at :data:`ALPHA` (two-sided).
+#: Critical ``|z|`` at :data:`ALPHA` (two-sided).
 Z_CRIT = float(stats.norm.isf(ALPHA / 2))
 #: Relative tolerance of the table values (both packages evaluate the same formula).
 EXACT_TOL = 1e-6

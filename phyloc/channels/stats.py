@@ -4,38 +4,38 @@
 sampler produced with the numbers of the scenario file. Figure names (stable, part of the
 public interface; a figure is omitted when its condition has no links in the draw):
 
-=============================  ===============================================================
-``los_fraction``               fraction of LOS links
-``los_fraction_table``         mean of P_LOS(d) over the same distances
-                               (WINNER II D1.1.2 Table 4-7)
-``ds_log10_mean_los``          mean of log10(DS / 1 s) over LOS links (the drawn LSP)
-``ds_log10_std_los``           its std; ``*_nlos`` the same over NLOS links
-``rms_ds_log10_mean_los``      mean of log10 of the rms delay spread of the generated paths
-                               (``*_nlos`` likewise); WINNER II does not make this equal DS
-``k_factor_db_mean``           mean of the K-factor [dB] over LOS links
-``k_factor_db_std``            its std
-``sf_std_db_los``              std of the shadow fading [dB] over LOS links (``*_nlos``)
-``path_count_mean``            mean number of paths per link
-``excess_delay_mean_s``        mean over links of the power-weighted mean of ``τ_l − d/c0`` [s]
-                               (includes the NLOS bias)
-``nlos_bias_mean_s``           mean NLOS bias over NLOS links [s]
-``distance_mean_m``            mean link distance [m]
-``carrier_gain_db_median``     field model: median over links of the narrowband power at the
-                               carrier, ``|Σ_l α_l|²``, relative to the free-space power
-                               ``P_tx·(λ/(4π d))²`` [dB] (the two-ray fading)
-``carrier_gain_db_p10``        its 10th percentile [dB]
-``pdp_rms_delay_spread_s_los`` tdl model: RMS delay spread of the mean power-delay profile
-                               (path powers over the link budget, averaged over links) [s];
-                               table: the file's ``delay_spread_s`` (``*_nlos`` likewise)
-``tap_power_db_max_dev_los``   tdl model: largest ``|10·log10(mean power / table power)|``
-                               over the taps [dB] (``*_nlos`` likewise)
-``corr_ds_sf_los``             tr38901 model: correlation of log10 DS and SF (as a gain, the
-                               received power over the path loss) over LOS links;
-                               table: TR 38.901 Table 7.5-6 (``corr_ds_k``, ``corr_sf_k``:
-                               LOS only; ``corr_ds_sf_nlos``)
-``cluster_count_mean_los``     tr38901 model: clusters per link after the removal of those
-                               25 dB below the strongest (before: the table's N)
-=============================  ===============================================================
+================================  ===============================================================
+``los_fraction``                  fraction of LOS links
+``los_fraction_table``            mean of P_LOS(d) over the same distances
+                                  (WINNER II D1.1.2 Table 4-7)
+``ds_log10_mean_los``             mean of log10(DS / 1 s) over LOS links (the drawn LSP)
+``ds_log10_std_los``              its std; ``*_nlos`` the same over NLOS links
+``rms_ds_log10_mean_los``         mean of log10 of the rms delay spread of the generated paths
+                                  (``*_nlos`` likewise); WINNER II does not make this equal DS
+``k_factor_db_mean``              mean of the K-factor [dB] over LOS links
+``k_factor_db_std``               its std
+``sf_std_db_los``                 std of the shadow fading [dB] over LOS links (``*_nlos``)
+``path_count_mean``               mean number of paths per link
+``excess_delay_mean_s``           mean over links of the power-weighted mean of ``τ_l − d/c0`` [s]
+                                  (includes the NLOS bias)
+``nlos_bias_mean_s``              mean NLOS bias over NLOS links [s]
+``distance_mean_m``               mean link distance [m]
+``carrier_gain_db_median``        field model: median over links of the narrowband power at the
+                                  carrier, ``|Σ_l α_l|²``, relative to the free-space power
+                                  ``P_tx·(λ/(4π d))²`` [dB] (the two-ray fading)
+``carrier_gain_db_p10``           its 10th percentile [dB]
+``pdp_rms_delay_spread_s_los``    tdl model: RMS delay spread of the mean power-delay profile
+                                  (path powers over the link budget, averaged over links) [s];
+                                  table: the file's ``delay_spread_s`` (``*_nlos`` likewise)
+``tap_power_db_max_dev_los``      tdl model: largest ``|10·log10(mean power / table power)|``
+                                  over the taps [dB] (``*_nlos`` likewise)
+``corr_ds_sf_los``                tr38901 model: correlation of log10 DS and SF (as a gain, the
+                                  received power over the path loss) over LOS links;
+                                  table: TR 38.901 Table 7.5-6 (``corr_ds_k``, ``corr_sf_k``:
+                                  LOS only; ``corr_ds_sf_nlos``)
+``cluster_count_mean_los``        tr38901 model: clusters per link after the removal of those
+                                  25 dB below the strongest (before: the table's N)
+================================  ===============================================================
 
 Each figure with a table value has a twin ``<name>_table``. Table values: DS and K from
 WINNER II D1.1.2 Table 4-5 (μ, σ); SF: ``sqrt(mean σ_SF(d)²)`` over the drawn links (the law's
