@@ -24,6 +24,9 @@ Work unit: one link of the DiPNet system (N = 2569 subcarriers) with 24 paths, i
 ``interp.<m>.max_rel_error``     max |f̃ − f| / max|f| over random distances, β ≈ 8
 ``interp.<m>.peak_bias_m``       max distance error of the interpolated |f|² peak of a
                                  noise-free one-path link (what a particle filter would see)
+``<nr>.pipeline_links_per_s``    the pipeline in a 3GPP NR numerology (``nr_30khz``: 3277 x
+                                 30 kHz; ``nr_120khz``: 793 x 120 kHz; :data:`NUMEROLOGIES`)
+``<nr>.pipeline_cost_over_floor`` its cost in FFT floors of its own padded length
 ``peak_rmse_over_sqrt_crb.<s>db`` RMSE of the refined correlation peak over √CRB (eq. (24)),
                                  AWGN, post-correlation SNR s = 20, 30, 40 dB, 1000 links each
 
@@ -58,9 +61,18 @@ N_PATHS = 24
 BETA = 8.0
 
 
-def make_batch(n_links=N_LINKS, n_paths=N_PATHS, seed=0):
-    """A seeded batch: the paper's system, one pilot row, ``n_paths`` paths per link."""
-    system = OFDMSystem()
+#: 3GPP NR numerologies at about 100 MHz (TS 38.211 subcarrier spacings; N odd, symmetric about
+#: DC): the cost per link of the same pipeline beside the DiPNet system's.
+NUMEROLOGIES = {
+    "nr_30khz": dict(n_subcarriers=3277, subcarrier_spacing_hz=30e3, carrier_frequency_hz=3.5e9),
+    "nr_120khz": dict(n_subcarriers=793, subcarrier_spacing_hz=120e3, carrier_frequency_hz=28e9),
+}
+
+
+def make_batch(n_links=N_LINKS, n_paths=N_PATHS, seed=0, system=None):
+    """A seeded batch: the paper's system (or ``system``), one pilot row, ``n_paths`` paths per
+    link."""
+    system = OFDMSystem() if system is None else system
     rng = np.random.default_rng(seed)
     S = qpsk_symbols(system, 1, rng)
     total = n_links * n_paths
@@ -257,6 +269,22 @@ def report(quick: bool = False) -> dict[str, float]:
     fig["pipeline_streaming_cost_over_floor"] = t_stream / t_floor
     fig["fft_threads"] = phyfft.threads()
 
+    for tag, kw in NUMEROLOGIES.items():  # the pipeline in NR numerologies, its own floor
+        nsys, nS, npaths, nrng = make_batch(system=OFDMSystem(**kw))
+        nL = fft_length(nsys, BETA)
+        nplan = phyfft.batch_fft(64, nL)
+
+        def npipe(nsys=nsys, nS=nS, npaths=npaths, nrng=nrng):
+            correlation_tables(synthesize(npaths, nS, nsys, nrng), nS, nsys, beta=BETA)
+
+        def nfloor(nplan=nplan):
+            for _ in range(N_LINKS // 64):
+                nplan.execute()
+
+        nbest = best_seconds_interleaved({"pipe": npipe, "floor": nfloor}, repeat=2 * repeat)
+        fig[f"{tag}.n_fft"] = nL
+        fig[f"{tag}.pipeline_links_per_s"] = N_LINKS / nbest["pipe"]
+        fig[f"{tag}.pipeline_cost_over_floor"] = nbest["pipe"] / nbest["floor"]
     acc_rng = np.random.default_rng(1)
     for method in ("linear", "cubic", "quintic"):
         it = Interpolation()
@@ -330,6 +358,18 @@ def summarize(fig: dict) -> str:
             f"{fig['pipeline_cpu_over_floor_1t']:.2f}x floor cost",
         ),
     ]
+    nrows = [
+        (
+            f"{tag}: N = {kw['n_subcarriers']}, {kw['subcarrier_spacing_hz'] / 1e3:g} kHz",
+            fig[f"{tag}.pipeline_links_per_s"],
+            us(fig[f"{tag}.pipeline_links_per_s"]),
+            f"{fig[f'{tag}.pipeline_cost_over_floor']:.2f}x its floor "
+            f"(L = {int(fig[f'{tag}.n_fft'])})",
+        )
+        for tag, kw in NUMEROLOGIES.items()
+        if f"{tag}.pipeline_links_per_s" in fig
+    ]
+    rows += nrows
     head = (
         f"N = 2569 subcarriers, {int(fig['n_paths'])} paths/link, batches of "
         f"{int(fig['n_links'])} links, beta = {fig['beta']:.3f}, "
