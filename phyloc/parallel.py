@@ -192,6 +192,20 @@ def run_tasks(
 WORKER_MALLOC_ENV = {"MALLOC_MMAP_THRESHOLD_": 2**26, "MALLOC_TRIM_THRESHOLD_": 2**30}
 
 
+def dask_setup(worker) -> None:
+    """Worker preload of phyloc's embedded cluster: its worker processes ignore Ctrl-C.
+
+    Ctrl-C in a terminal reaches every process of the foreground group; the workers of the
+    embedded ``LocalCluster`` would each print a KeyboardInterrupt traceback before phyloc's
+    one-line message. The interrupt is the client's to handle: it stops the run and closes the
+    cluster, which ends the workers (Dask preloads: ``distributed.preloading``)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def local_cluster(workers: int):
     """An embedded Dask ``LocalCluster`` of ``workers`` single-threaded processes, with
     :data:`WORKER_MALLOC_ENV` in their environment (a context manager)."""
@@ -210,6 +224,7 @@ def local_cluster(workers: int):
             dashboard_address=":0",
             scheduler_kwargs={"dashboard": False},
             silence_logs=40,
+            preload=["phyloc.parallel"],  # dask_setup: the workers leave Ctrl-C to the client
         )
 
 

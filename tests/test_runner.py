@@ -97,3 +97,26 @@ def test_an_embedded_cluster_neither_needs_nor_warns_about_port_8787():
     finally:
         if holder is not None:
             holder.close()
+
+
+def _sigint_handler_name():
+    import signal
+
+    return {signal.SIG_IGN: "ignored", signal.SIG_DFL: "default"}.get(
+        signal.getsignal(signal.SIGINT), "handled"
+    )
+
+
+def test_embedded_workers_leave_ctrl_c_to_the_client():
+    """The worker processes of phyloc's embedded cluster ignore SIGINT (a Ctrl-C reaches the
+    whole foreground process group; each worker used to print a KeyboardInterrupt traceback
+    before phyloc's one line): the client alone stops the run and closes the cluster."""
+    from dask.distributed import Client
+
+    from phyloc.parallel import local_cluster
+
+    with local_cluster(2) as cluster, Client(cluster) as client:
+        client.wait_for_workers(2, timeout=60)
+        seen = client.run(_sigint_handler_name)
+    assert len(seen) == 2 and set(seen.values()) == {"ignored"}
+    assert _sigint_handler_name() != "ignored"  # this process still takes Ctrl-C
