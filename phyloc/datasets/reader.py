@@ -25,7 +25,7 @@ import contextlib
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import h5py
 import numpy as np
@@ -213,6 +213,34 @@ class Dataset:
             "n_paths": sh["n_paths"][:],
         }
         self.array_names = tuple(sc._text(x) for x in sh["array_sha256"].attrs["arrays"])
+        for name in self.shards["file"]:  # a master from elsewhere names only its own files
+            self._check_inside(name, "shards/file")
+        for dset in self._virtual_datasets():
+            for vs in dset.virtual_sources():
+                self._check_inside(vs.file_name, f"{dset.name} (a virtual dataset's source)")
+
+    def _virtual_datasets(self):
+        out = []
+
+        def visit(_, obj):
+            if isinstance(obj, h5py.Dataset) and obj.is_virtual:
+                out.append(obj)
+
+        self.file.visititems(visit)
+        return out
+
+    def _check_inside(self, name: str, what: str) -> None:
+        """Refuse a file the master names outside the dataset's folder: an absolute path, a
+        ``..`` component, or a link that resolves elsewhere (a dataset from someone else
+        must not make phyloc read files it was not given)."""
+        pure = PurePosixPath(str(name).replace("\\", "/"))
+        root = self.path.parent.resolve()
+        target = (self.path.parent / str(name)).resolve()
+        if pure.is_absolute() or ".." in pure.parts or not target.is_relative_to(root):
+            raise sc.DatasetError(
+                f"dataset {self.path}: {what} names {name!r}, outside the dataset's folder "
+                f"{root}; a dataset reads only files beside its master (refusing it)"
+            )
 
     # -- context manager and basics ----------------------------------------------------------
     def close(self) -> None:
