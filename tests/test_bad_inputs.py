@@ -231,6 +231,21 @@ GENERATE_RECIPES = [
     ),
     ("evaluate-section-with-zero-beta", DATASET + "[ranging]\nbeta = 0.0\n", "beta"),
     ("misspelt-dataset-key", DATASET + "shard_sise = 1\n", "shard_sise"),
+    (
+        "environment-height-on-winner2",
+        _sub(DATASET, "[channel]\n", "[channel]\nh_e_m = 1.0\n"),
+        "channel.h_e_m",
+    ),
+    (
+        "negative-environment-height-tr38901",
+        _sub(DATASET, 'scenario = "winner2_c2"', 'scenario = "tr38901_umi"\nh_e_m = -1.0'),
+        "channel.h_e_m",
+    ),
+    (
+        "negative-antenna-height-tr38901",
+        _sub(DATASET, 'scenario = "winner2_c2"', 'scenario = "tr38901_umi"\nh_tx_m = -3.0'),
+        "channel.h_tx_m",
+    ),
     ("experiment-recipe-to-generate", LOCALIZATION, "dataset"),
 ]
 
@@ -385,7 +400,25 @@ def _deep_channel_file(tmp_path):
     return ["channel-stats", str(tmp_path / "deep_channel.toml")], "deep_channel.toml"
 
 
+def _tdl_negative_delay_spread(tmp_path):
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "channels" / "tdl_a.toml").read_text()
+    import re
+
+    bad = re.sub(r"(?m)^delay_spread_s\s*=\s*[^#\n]+", "delay_spread_s = -1.0e-7 ", text, count=1)
+    assert bad != text
+    (tmp_path / "my_tdl.toml").write_text(bad)
+    return ["channel-stats", str(tmp_path / "my_tdl.toml"), "--links", "50"], "delay_spread_s"
+
+
+def _channel_compare_zero_links(tmp_path):
+    return ["channel-compare", "tr38901_umi", "--links", "0"], "--links"
+
+
 FILE_CASES = [
+    ("tdl-file-negative-delay-spread", _tdl_negative_delay_spread),
+    ("channel-compare-zero-links", _channel_compare_zero_links),
     ("channel-file-3000-levels-deep", _deep_channel_file),
     ("channel-stats-json-under-a-file", _json_under_a_file),
     ("belief-shift-json-is-a-folder", _json_is_a_folder),
