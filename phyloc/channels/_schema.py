@@ -196,3 +196,41 @@ def _has_required(spec: dict) -> bool:
         _has_required(sub) if isinstance(sub, dict) else sub.default is REQUIRED
         for sub in spec.values()
     )
+
+
+def correlation_cholesky(cc: dict, names, where: str):
+    """``(R, L)``: the correlation matrix of the large-scale parameters ``names`` (in that
+    order, e.g. ``("ds", "sf", "k")``) from the pairwise coefficients ``cc`` (keys
+    ``"<a>_<b>"`` in either order, e.g. ``ds_sf``) and its Cholesky factor ``L`` (``R = L Lᵀ``).
+
+    Raises
+    ------
+    ValidationError
+        ``R`` is not positive definite (naming ``<where>.lsp.cross_correlation``).
+
+    Examples
+    --------
+    >>> R, L = correlation_cholesky({"ds_sf": -0.4}, ("ds", "sf"), "c2.los")
+    >>> R.tolist()
+    [[1.0, -0.4], [-0.4, 1.0]]
+    """
+    import numpy as np
+
+    from phyloc.errors import ValidationError
+
+    n = len(names)
+    corr = np.eye(n)
+    for i in range(n):
+        for j in range(i + 1, n):
+            a, b = names[i], names[j]
+            corr[i, j] = corr[j, i] = cc[f"{a}_{b}"] if f"{a}_{b}" in cc else cc[f"{b}_{a}"]
+    try:
+        chol = np.linalg.cholesky(corr)
+    except np.linalg.LinAlgError:
+        order = ", ".join(x.upper() for x in names)
+        raise ValidationError(
+            f"{where}.lsp.cross_correlation",
+            cc,
+            f"the correlation matrix of [{order}] must be positive definite",
+        ) from None
+    return corr, chol

@@ -430,25 +430,8 @@ def _parse_condition(model: str, condition: str, table, where: str):
             vals.get("nlos_bias_mean_s", 0.0),
         )
     lsp, cl, sub = vals["lsp"], vals["clusters"], vals["subclusters"]
-    cc = lsp["cross_correlation"]
-    if condition == "los":
-        corr = np.array(
-            [
-                [1.0, cc["ds_sf"], cc["ds_k"]],
-                [cc["ds_sf"], 1.0, cc["sf_k"]],
-                [cc["ds_k"], cc["sf_k"], 1.0],
-            ]
-        )
-    else:
-        corr = np.array([[1.0, cc["ds_sf"]], [cc["ds_sf"], 1.0]])
-    try:
-        chol = np.linalg.cholesky(corr)
-    except np.linalg.LinAlgError:
-        raise ValidationError(
-            f"{where}.lsp.cross_correlation",
-            cc,
-            "the correlation matrix of [DS, SF, K] must be positive definite",
-        ) from None
+    names = ("ds", "sf", "k") if condition == "los" else ("ds", "sf")
+    corr, chol = s.correlation_cholesky(lsp["cross_correlation"], names, where)
     offs, fracs = sub["delay_offsets_s"], sub["power_fractions"]
     if len(offs) != len(fracs):
         raise ValidationError(

@@ -727,25 +727,9 @@ class Tr38901Condition:
 
 
 def _correlation(condition: str, cc: dict, where: str):
-    if condition == "los":
-        corr = np.array(
-            [
-                [1.0, cc["sf_k"], cc["ds_sf"]],
-                [cc["sf_k"], 1.0, cc["ds_k"]],
-                [cc["ds_sf"], cc["ds_k"], 1.0],
-            ]
-        )
-    else:
-        corr = np.array([[1.0, cc["ds_sf"]], [cc["ds_sf"], 1.0]])
-    try:
-        chol = np.linalg.cholesky(corr)
-    except np.linalg.LinAlgError:
-        raise ValidationError(
-            f"{where}.lsp.cross_correlation",
-            cc,
-            "the correlation matrix of [SF, K, DS] must be positive definite",
-        ) from None
-    return corr, chol
+    """[SF, K, DS] (LOS) or [SF, DS] (NLOS) correlation and its Cholesky factor."""
+    names = ("sf", "k", "ds") if condition == "los" else ("sf", "ds")
+    return s.correlation_cholesky(cc, names, where)
 
 
 def _parse_condition(
