@@ -97,6 +97,18 @@ def _expected_paths(par) -> float:
     return math.nan  # tr38901: the count varies with the removal of weak clusters
 
 
+def _rms_ds_figure(put, rms, mask, cond) -> None:
+    """``rms_ds_log10_mean_<cond>``: mean log10 of the links' path rms delay spreads (links of
+    ``mask`` with a positive spread; none: no figure)."""
+    ok = mask & (rms > 0)
+    if ok.any():
+        put(
+            f"rms_ds_log10_mean_{cond}",
+            f"log10 rms delay spread of paths [s] mean, {cond.upper()}",
+            np.log10(rms[ok]).mean(),
+        )
+
+
 def channel_stats(
     scenario,
     *,
@@ -180,13 +192,7 @@ def channel_stats(
                 lg.std(ddof=1) if mask.sum() > 1 else 0.0,
                 sd,
             )
-            ok = mask & (rms > 0)
-            if ok.any():
-                put(
-                    f"rms_ds_log10_mean_{cond}",
-                    f"log10 rms delay spread of paths [s] mean, {cond.upper()}",
-                    np.log10(rms[ok]).mean(),
-                )
+            _rms_ds_figure(put, rms, mask, cond)
         if isinstance(par, FieldCondition):
             _field_figures(put, draw, mask, rms, system)
         if isinstance(par, TdlCondition):
@@ -248,13 +254,7 @@ def _field_figures(put, draw: ChannelDraw, mask, rms, system) -> None:
     k = draw.k_factor_db[mask]
     put("k_factor_db_mean", "K-factor [dB] mean (direct / other paths)", k.mean())
     put("k_factor_db_std", "K-factor [dB] std", k.std(ddof=1) if k.size > 1 else 0.0)
-    ok = mask & (rms > 0)
-    if ok.any():
-        put(
-            "rms_ds_log10_mean_los",
-            "log10 rms delay spread of paths [s] mean, LOS",
-            np.log10(rms[ok]).mean(),
-        )
+    _rms_ds_figure(put, rms, mask, "los")
     system = OFDMSystem() if system is None else system
     lam = C0 / system.carrier_frequency_hz
     coherent = np.abs(np.add.reduceat(draw.paths.gains, draw.paths.offsets[:-1])) ** 2
@@ -289,13 +289,7 @@ def _tdl_figures(put, draw: ChannelDraw, mask, rms, system, par: TdlCondition) -
     )
     dev = np.max(np.abs(10.0 * np.log10(q / par.power_fractions)))
     put(f"tap_power_db_max_dev_{cond}", f"tap power vs table, max |dev| [dB], {cond.upper()}", dev)
-    ok = mask & (rms > 0)
-    if ok.any():
-        put(
-            f"rms_ds_log10_mean_{cond}",
-            f"log10 rms delay spread of paths [s] mean, {cond.upper()}",
-            np.log10(rms[ok]).mean(),
-        )
+    _rms_ds_figure(put, rms, mask, cond)
     if cond == "los":
         los = par.is_los_path
         k = 10.0 * math.log10(q[los].sum() / q[~los].sum())
@@ -314,13 +308,7 @@ def _tr38901_figures(put, draw: ChannelDraw, mask, rms, system, par: Tr38901Cond
     up = cond.upper()
     put(f"ds_log10_mean_{cond}", f"log10 DS [s] mean, {up}", lg.mean(), mu)
     put(f"ds_log10_std_{cond}", f"log10 DS [s] std, {up}", lg.std(ddof=1) if many else 0.0, sigma)
-    ok = mask & (rms > 0)
-    if ok.any():
-        put(
-            f"rms_ds_log10_mean_{cond}",
-            f"log10 rms delay spread of paths [s] mean, {up}",
-            np.log10(rms[ok]).mean(),
-        )
+    _rms_ds_figure(put, rms, mask, cond)
     sf = -draw.shadowing_db[mask]  # SF as a gain, as Table 7.5-6 correlates it
     corr = par.correlation  # [SF, K, DS] (LOS) or [SF, DS] (NLOS)
 
