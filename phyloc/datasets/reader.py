@@ -213,11 +213,17 @@ class Dataset:
             "n_paths": sh["n_paths"][:],
         }
         self.array_names = tuple(sc._text(x) for x in sh["array_sha256"].attrs["arrays"])
-        for name in self.shards["file"]:  # a master from elsewhere names only its own files
-            self._check_inside(name, "shards/file")
+        seen = set()  # a master from elsewhere names only its own files (each checked once)
+        for name in self.shards["file"]:
+            if name not in seen:
+                seen.add(name)
+                self._check_inside(name, "shards/file")
         for dset in self._virtual_datasets():
-            for vs in dset.virtual_sources():
-                self._check_inside(vs.file_name, f"{dset.name} (a virtual dataset's source)")
+            plist = dset.id.get_create_plist()  # the sources' file names only (no selections)
+            names = {plist.get_virtual_filename(i) for i in range(plist.get_virtual_count())}
+            for name in names - seen:
+                seen.add(name)
+                self._check_inside(name, f"{dset.name} (a virtual dataset's source)")
 
     def _virtual_datasets(self):
         out = []
