@@ -297,10 +297,10 @@ def _los_split(par, sf_std_db):
     z, wt = _gauss_hermite()
     z1, z2 = np.meshgrid(z, z, indexing="ij")
     w2 = np.outer(wt, wt).ravel()
-    sf_unit = z1.ravel()
+    gain_unit = z1.ravel()  # the table correlates K with SF as a gain (P_rx = P_tx − PL + SF)
     k_db = par.k_db_mu + par.k_db_sigma * (rho * z1 + math.sqrt(1.0 - rho * rho) * z2).ravel()
     kr = 10.0 ** (k_db / 10.0)
-    att = np.exp(-np.outer(sf_std_db, sf_unit) * (math.log(10.0) / 10.0))  # [n_d, nodes]
+    att = np.exp(np.outer(sf_std_db, gain_unit) * (math.log(10.0) / 10.0))  # [n_d, nodes]
     direct = att @ (w2 * kr / (kr + 1.0))
     scatter = att @ (w2 / (kr + 1.0))
     return direct, scatter

@@ -127,7 +127,8 @@ class ChannelDraw:
     path_loss_db : [n_links], float64
         Distance-dependent path loss [dB] (without shadowing).
     shadowing_db : [n_links], float64
-        Shadow fading SF [dB]; the link budget uses ``PL + SF``.
+        Shadow fading SF [dB] as a loss; the link budget uses ``PL + SF``. The tables
+        correlate the gain ``−SF`` with DS and K (WINNER II Table 4-5, TR 38.901 Table 7.5-6).
     shadowing_std_db : [n_links], float64
         σ_SF of the link's path-loss segment [dB].
     received_power_w : [n_links], float64
@@ -439,7 +440,9 @@ def _draw_winner2(p: Winner2Condition, sf_std: np.ndarray, rng) -> dict:
     is_los = p.condition == "los"
     x = rng.standard_normal((n, p.cholesky.shape[0])) @ p.cholesky.T
     ds = 10.0 ** (p.ds_log10_mu + p.ds_log10_sigma * x[:, 0])
-    sf = sf_std * x[:, 1]
+    # Table 4-5 correlates SF as a gain (P_rx = P_tx − PL + SF; the WINNER II reference code
+    # multiplies the channel by sqrt(10^(SF/10))); ``shadowing_db`` is a loss added to PL
+    sf = -sf_std * x[:, 1]
     k_db = p.k_db_mu + p.k_db_sigma * x[:, 2] if is_los else np.full(n, math.nan)
     nc = p.num_clusters
     if p.delay_distribution == "exponential":
