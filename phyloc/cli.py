@@ -446,7 +446,7 @@ def main(argv=None) -> int:
     except OSError as exc:  # permission denied, disk full, a file where a folder should be, …
         if args.debug:
             raise
-        print(f"phyloc: error: {_os_error(exc)}", file=sys.stderr)
+        print(f"phyloc: error: {_os_error(exc, getattr(args, 'func', None))}", file=sys.stderr)
         return 2
     except Exception as exc:  # a defect of phyloc: one line, the traceback on request
         if args.debug:
@@ -467,17 +467,22 @@ def main(argv=None) -> int:
         return 130
 
 
-def _os_error(exc: OSError) -> str:
+def _os_error(exc: OSError, func=None) -> str:
     """One line for an operating-system error: what failed, on which path, and the likely
-    remedy for the common cases."""
+    remedy for the common cases (for a full disk: what the command ``func`` kept)."""
     import errno
 
     where = f": {exc.filename}" if getattr(exc, "filename", None) else ""
     what = exc.strerror or str(exc).splitlines()[0] or type(exc).__name__
+    full = "the disk is full; free space or choose another path"
+    if func is commands.cmd_generate:
+        full = "the disk is full; completed shards are kept: free space and rerun with --resume"
+    elif func is commands.cmd_evaluate:
+        full = "the disk is full; finished tasks are kept: free space and rerun with --resume"
     hint = {
         errno.EACCES: "check the permissions or choose another path",
         errno.EROFS: "the file system is read-only; choose another path",
-        errno.ENOSPC: "the disk is full; free space (completed shards are kept: --resume)",
+        errno.ENOSPC: full,
         errno.EISDIR: "a folder is in the way; give a file path",
         errno.ENOTDIR: "a file is in the way where a folder is needed; choose another path",
     }.get(exc.errno)

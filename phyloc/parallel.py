@@ -50,6 +50,7 @@ from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
 from phyloc import _validate as v
+from phyloc._files import write_atomic
 
 
 def task_seeds(seed: int, n_tasks: int) -> list[np.random.SeedSequence]:
@@ -406,9 +407,7 @@ class TaskStore:
             # followed with `cat OUT/.tasks/run.json`
             "calls": {c.dir.name: {"tasks": c.n, "done": c.done} for c in self._calls},
         }
-        tmp = self.dir / "run.json.tmp"
-        tmp.write_text(json.dumps(meta, indent=1))
-        os.replace(tmp, self.dir / "run.json")
+        write_atomic(self.dir / "run.json", json.dumps(meta, indent=1).encode())
 
     def get(self, fn, payloads, seed) -> _CallStore:
         """The store of one :func:`run_tasks` call."""
@@ -443,10 +442,8 @@ class _CallStore:
 
     def save(self, i, result) -> None:
         self.dir.mkdir(parents=True, exist_ok=True)
-        tmp = self.dir / f"{i}.pkl.tmp"
-        with open(tmp, "wb") as f:
-            pickle.dump(result, f, protocol=5)
-        os.replace(tmp, self.dir / f"{i}.pkl")
+        # a full disk fails here with the task file's path; earlier tasks stay (--resume)
+        write_atomic(self.dir / f"{i}.pkl", pickle.dumps(result, protocol=5))
         self.done += 1
         self.run.computed += 1
         self.run._write_meta()

@@ -21,11 +21,11 @@ import math
 import os
 import platform
 import re
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from phyloc._files import write_atomic
 from phyloc.errors import PhylocError
 
 
@@ -125,14 +125,6 @@ def is_measurement(name: str) -> bool:
     return "runtime" in name or name.endswith(MEASUREMENT_SUFFIXES)
 
 
-def file_mode() -> int:
-    """The permission bits a new file gets from ``open()`` under the current umask
-    (``0o666 & ~umask``, usually 0644)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
 #: A JSON list of numbers (no nested list or object) as ``json.dumps(indent=2)`` writes it.
 _FLAT_LIST = re.compile(r"\[(?:\s*(?:-?(?:\d|Infinity|NaN)[^,\]\s]*|null|true|false),?)+\s*\]")
 
@@ -169,17 +161,7 @@ def write_json(path, figures: dict, meta: dict, series: dict | None = None, *, f
     doc = {"figures": _clean(figures), "meta": _clean(meta)}
     if series:
         doc["series"] = _clean(series)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or ".", prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, file_mode())  # mkstemp's 0600 → what open() would have given
-        with os.fdopen(fd, "w") as fh:
-            fh.write(dumps_results(doc))
-            fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomic(path, (dumps_results(doc) + "\n").encode())
 
 
 def format_table(rows, headers) -> str:
@@ -261,8 +243,13 @@ def new_figure(rows: int = 1, cols: int = 1, *, size=(6.4, 4.8), **subplots):
 
 
 def save_figure(fig, path) -> None:
-    """Write ``fig`` to ``path`` (PNG by its suffix) at :data:`FIGURE_DPI`."""
-    fig.savefig(path, dpi=FIGURE_DPI)
+    """Write ``fig`` to ``path`` (PNG by its suffix) at :data:`FIGURE_DPI`, whole or not at
+    all (:func:`phyloc._files.write_atomic`: a full disk names the path, the old file stays)."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=FIGURE_DPI, format=Path(path).suffix.lstrip(".").lower() or "png")
+    write_atomic(path, buf.getvalue())
 
 
 def grouped_bars(ax, labels, groups: dict, *, fontsize: int = 8) -> None:

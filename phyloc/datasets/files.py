@@ -18,17 +18,15 @@ from __future__ import annotations
 
 import contextlib
 import os
-import uuid
 from pathlib import Path
 
+from phyloc._files import temp_name
 from phyloc.datasets import schema as sc
 
 
 def temp_path(final) -> Path:
-    """A unique temporary name next to ``final``: ``.NAME.tmp-<pid>-<8 random hex digits>``
-    (hidden, in the same folder, so that the rename stays on one filesystem)."""
-    final = Path(final)
-    return final.with_name(f".{final.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}")
+    """A unique temporary name next to ``final`` (:func:`phyloc._files.temp_name`)."""
+    return temp_name(final)
 
 
 @contextlib.contextmanager

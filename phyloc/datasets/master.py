@@ -27,15 +27,15 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 from datetime import UTC, datetime
 from pathlib import Path
 
 import h5py
 import numpy as np
 
+from phyloc._files import write_atomic
 from phyloc.datasets import schema as sc
-from phyloc.datasets.files import staged
+from phyloc.datasets.files import temp_path
 from phyloc.datasets.plan import DatasetPlan
 
 
@@ -61,25 +61,28 @@ def write_master(out, plan: DatasetPlan, records, *, created: str | None = None)
         P += rec["n_paths"]
     dims = plan.dims(R, L, P)
     arrays = plan.arrays
-    with staged(out) as tmp:
-        with h5py.File(tmp, "w") as f:
-            f.attrs.update(_master_attributes(plan, L, len(done), created, sdir.name))
-            g = f.create_group("system")
-            g.attrs.update(plan.system.to_dict())
-            g.attrs.update(
-                {
-                    "bandwidth_hz": plan.system.bandwidth_hz,
-                    "sample_period_s": plan.system.sample_period_s,
-                    "symbol_duration_s": plan.system.symbol_duration_s,
-                    "noise_power_w": plan.system.noise_power_w,
-                }
-            )
-            _write_shard_table(f, plan, records, arrays, sdir.name)
-            for a in arrays:
-                _write_master_array(f, a, dims, done, path_offset, sdir.name)
-            _write_dimension_scales(f, plan, dims, arrays)
-            f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)  # last: covers the rest
-        os.replace(tmp, out)
+    # built in memory, then written in one piece: a full disk then fails in plain Python with
+    # the master's path, never inside HDF5 half-way through a file (phyloc._files)
+    with h5py.File(temp_path(out), "w", driver="core", backing_store=False) as f:
+        f.attrs.update(_master_attributes(plan, L, len(done), created, sdir.name))
+        g = f.create_group("system")
+        g.attrs.update(plan.system.to_dict())
+        g.attrs.update(
+            {
+                "bandwidth_hz": plan.system.bandwidth_hz,
+                "sample_period_s": plan.system.sample_period_s,
+                "symbol_duration_s": plan.system.symbol_duration_s,
+                "noise_power_w": plan.system.noise_power_w,
+            }
+        )
+        _write_shard_table(f, plan, records, arrays, sdir.name)
+        for a in arrays:
+            _write_master_array(f, a, dims, done, path_offset, sdir.name)
+        _write_dimension_scales(f, plan, dims, arrays)
+        f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)  # last: covers the rest
+        f.flush()
+        image = f.id.get_file_image()
+    write_atomic(out, image)
     return out
 
 
@@ -286,6 +289,14 @@ def previous_master(out: Path, plan: DatasetPlan, sdir: Path):
     return created, known
 
 
+def remove_stale(sdir: Path) -> None:
+    """Remove the temporary shard files of interrupted or stopped writers in ``sdir`` (the
+    caller holds the output lock, so no live writer of this output owns one)."""
+    for stale in Path(sdir).glob(".shard-*.tmp-*"):
+        with contextlib.suppress(OSError):
+            stale.unlink()
+
+
 def scan_shards(plan: DatasetPlan, sdir: Path, known: dict) -> list:
     """Check every shard file of ``plan`` in ``sdir`` (a resume): return the shard table, the
     row of every sound shard and None for a missing or corrupt one (generated again). Deletes
@@ -299,9 +310,7 @@ def scan_shards(plan: DatasetPlan, sdir: Path, known: dict) -> list:
     DatasetMismatchError
         A shard was generated from another recipe.
     """
-    for stale in sdir.glob(".shard-*.tmp-*"):
-        with contextlib.suppress(OSError):
-            stale.unlink()
+    remove_stale(sdir)
     records = []
     for j in range(plan.dataset.n_shards):
         start, stop = plan.dataset.shard_range(j)

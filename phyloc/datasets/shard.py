@@ -39,6 +39,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from phyloc._files import require_space, reserve_space
 from phyloc.channels import ChannelSpec
 from phyloc.datasets import schema as sc
 from phyloc.datasets.files import fsync, fsync_dir, staged
@@ -137,6 +138,27 @@ def _link_counts(task: ShardTask, seeds) -> np.ndarray:
     return counts
 
 
+#: Paths per link budgeted when a shard's size is estimated before it is simulated.
+PATHS_PER_LINK_ESTIMATE = 32
+
+
+def _shard_bytes(r, K, L, M, n, N, small) -> int:
+    """An estimate of a shard's size before it is written [bytes]: the uncompressed received
+    samples and symbols (complex64), the per-link arrays, and :data:`PATHS_PER_LINK_ESTIMATE`
+    paths (a float64 delay and a complex128 gain) per link. HDF5 cannot recover from a write
+    that fails half-way, so :func:`write_shard` allocates this much before it writes."""
+    per_link_paths = PATHS_PER_LINK_ESTIMATE * 24
+    return int(
+        1.02  # HDF5's chunk index and attributes
+        * (
+            8 * r * K * L * M
+            + 8 * r * n * N
+            + sum(a.nbytes for a in small.values())
+            + per_link_paths * r * K * L
+        )
+    )
+
+
 def write_shard(task: ShardTask) -> dict:
     """Generate, write, checksum and atomically publish one shard; return its table row.
 
@@ -167,11 +189,17 @@ def write_shard(task: ShardTask) -> dict:
     filt = dspec.h5_filter()
     t_sim = t_conv = t_write = 0.0
     noise_w = system.noise_power_w
+    M, N, n = system.n_samples, system.n_subcarriers, net_spec.n_nodes
+    need = _shard_bytes(r, K, L, M, n, N, small)
+    require_space(directory, need, f"shard {task.index}")
     with staged(final) as tmp:
         tw = time.perf_counter()
-        f = h5py.File(tmp, "w")
+        # HDF5 may crash on close after a write that failed for want of space, so the space
+        # is allocated first: a full disk is then a clean DiskFullError, before any data
+        h5py.File(tmp, "w").close()
+        reserve_space(tmp, need, f"shard {task.index}")
+        f = h5py.File(tmp, "r+")
         with f:
-            M, N, n = system.n_samples, system.n_subcarriers, net_spec.n_nodes
             cl = min(dspec.chunk_links or L, L)
             rx = f.create_dataset(
                 "received",

@@ -32,6 +32,7 @@ https://docs.hdfgroup.org/; the h5py documentation, https://docs.h5py.org/.
 from __future__ import annotations
 
 import contextlib
+import errno
 import math
 import os
 import time
@@ -43,7 +44,13 @@ from tqdm.auto import tqdm
 from phyloc import _validate as v
 from phyloc.datasets import schema as sc
 from phyloc.datasets.files import output_lock
-from phyloc.datasets.master import previous_master, scan_shards, utc_now, write_master
+from phyloc.datasets.master import (
+    previous_master,
+    remove_stale,
+    scan_shards,
+    utc_now,
+    write_master,
+)
 from phyloc.datasets.plan import (
     DatasetPlan,
     plan_dataset,
@@ -202,17 +209,29 @@ def _generate(plan: DatasetPlan, out, sdir, t0, workers, scheduler, resume, prog
         t_run = time.perf_counter()
 
         def done(task, rec, exc):
+            """Record one finished shard; False stops the run (a full disk)."""
             if exc is not None:
                 failures.append((task.index, exc))
+                if is_disk_full(exc):
+                    bar.update(1)
+                    return False
             else:
                 records[task.index] = rec
                 written.append(rec)
                 links = sum(r["n_links"] for r in written)
                 bar.set_postfix(links_per_s=f"{links / (time.perf_counter() - t_run):.0f}")
                 if time.perf_counter() - last[0] > _MASTER_EVERY_S:
-                    write_master(out, plan, records, created=created)
+                    try:
+                        write_master(out, plan, records, created=created)
+                    except OSError as err:  # the previous master stays (written atomically)
+                        if not is_disk_full(err):
+                            raise
+                        failures.append(("master", err))
+                        bar.update(1)
+                        return False
                     last[0] = time.perf_counter()
             bar.update(1)
+            return True
 
         try:
             if in_process:
@@ -221,8 +240,23 @@ def _generate(plan: DatasetPlan, out, sdir, t0, workers, scheduler, resume, prog
                 _run_dask(client, tasks, done)
         finally:
             bar.close()
-            stack.close()
-            write_master(out, plan, records, created=created)
+            stack.close()  # stops the embedded cluster's workers, mid-write ones included
+            remove_stale(sdir)
+            try:
+                write_master(out, plan, records, created=created)
+            except OSError as exc:  # the previous master stays in place (written atomically)
+                if not (failures and is_disk_full(exc)):
+                    raise
+    full = [(j, exc) for j, exc in failures if is_disk_full(exc)]
+    if full:
+        j, exc = full[0]
+        kept = len(list(sdir.glob("shard-*.h5")))  # published whole (os.replace) or not at all
+        where = getattr(exc, "filename", None) or sdir
+        what = getattr(exc, "strerror", None) or _first_line(exc)
+        raise sc.ShardGenerationError(
+            f"the disk is full at {where} ({_name(j)}: {what}); stopped with {kept} of {S} "
+            "shards complete, all kept. Free space and rerun the same command with --resume"
+        ) from exc
     if failures:
         j, exc = failures[0]
         kept = sum(rec is not None for rec in records)
@@ -259,16 +293,54 @@ def _summary(out, dspec, records, written, reused, t0, workers, scheduler) -> di
     }
 
 
+def is_disk_full(exc: BaseException) -> bool:
+    """Whether ``exc`` reports a full disk: ``errno.ENOSPC``, or HDF5's message carrying
+    ``errno = 28`` (h5py raises those as ``RuntimeError``/``OSError`` without an errno)."""
+    if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
+        return True
+    text = str(exc)
+    return "errno = 28" in text or "No space left on device" in text
+
+
+def _name(j) -> str:
+    return "the master" if j == "master" else f"shard {j}"
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).splitlines() or [type(exc).__name__])[0]
+
+
 def _run_here(tasks, done) -> None:
     """Write the shards of ``tasks`` one after the other in this process; ``done`` as each
-    ends (a failed shard does not stop the others)."""
+    ends (a failed shard does not stop the others; a full disk does)."""
     for task in tasks:
         try:
             rec = write_shard(task)
         except Exception as exc:  # kept; reported after the rest
-            done(task, None, exc)
+            if done(task, None, exc) is False:
+                return
         else:
-            done(task, rec, None)
+            if done(task, rec, None) is False:
+                return
+
+
+class _Failed:
+    """A shard's expected failure (a full disk, a denied folder, a phyloc error) returned as
+    the task's value: reported once, in phyloc's one line, not also in the worker's
+    "Compute Failed" log."""
+
+    def __init__(self, error):
+        self.error = error
+
+
+def _write_reporting(task):
+    """:func:`write_shard`, its ``OSError``/``PhylocError`` returned as :class:`_Failed`."""
+    from phyloc.errors import PhylocError
+
+    try:
+        return write_shard(task)
+    except (OSError, PhylocError) as exc:
+        return _Failed(exc)
 
 
 def _run_dask(client, tasks, done) -> None:
@@ -277,17 +349,22 @@ def _run_dask(client, tasks, done) -> None:
 
     tag = uuid.uuid4().hex[:8]
     futures = {
-        client.submit(write_shard, t, key=f"phyloc-shard-{t.index:05d}-{tag}", pure=False): t
+        client.submit(_write_reporting, t, key=f"phyloc-shard-{t.index:05d}-{tag}", pure=False): t
         for t in tasks
     }
     for fut in as_completed(futures):
         task = futures[fut]
         try:
             rec = fut.result()
+            if isinstance(rec, _Failed):
+                raise rec.error
         except Exception as exc:  # kept; reported after the rest
-            done(task, None, exc)
+            ok = done(task, None, exc)
         else:
-            done(task, rec, None)
+            ok = done(task, rec, None)
+        if ok is False:  # a full disk: no further shard is tried
+            client.cancel([f for f in futures if not f.done()])
+            return
 
 
 __all__ = ["generate"]
