@@ -224,7 +224,10 @@ def local_cluster(workers: int):
             # (a second phyloc run) holds it
             dashboard_address=":0",
             scheduler_kwargs={"dashboard": False},
-            silence_logs=40,
+            # phyloc reports every failure of a task itself, in one line (a task's exception
+            # reaches the client); the workers' own ERROR logs only repeat it, or, when Ctrl-C
+            # closes the cluster, print a heartbeat traceback of the closing scheduler
+            silence_logs=50,
             preload=["phyloc.parallel"],  # dask_setup: the workers leave Ctrl-C to the client
         )
 

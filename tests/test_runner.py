@@ -1,5 +1,6 @@
 """Monte Carlo task runner: per-task streams make results independent of the worker count."""
 
+import logging
 import numpy as np
 
 from phyloc.parallel import run_tasks, task_seeds
@@ -118,5 +119,56 @@ def test_embedded_workers_leave_ctrl_c_to_the_client():
     with local_cluster(2) as cluster, Client(cluster) as client:
         client.wait_for_workers(2, timeout=60)
         seen = client.run(_sigint_handler_name)
+        levels = client.run(_worker_log_level)
     assert len(seen) == 2 and set(seen.values()) == {"ignored"}
     assert _sigint_handler_name() != "ignored"  # this process still takes Ctrl-C
+    # the workers' ERROR logs only repeat what phyloc reports in one line (or, as Ctrl-C
+    # closes the scheduler, print a heartbeat traceback): silenced
+    assert set(levels.values()) == {logging.CRITICAL}
+
+
+def _worker_log_level():
+    """The least level a worker's ``distributed`` log handlers print (Dask's
+    ``silence_logs`` sets the handlers, not the loggers)."""
+    handlers = logging.getLogger("distributed").handlers
+    return min((h.level for h in handlers), default=logging.CRITICAL)
+
+
+def test_ctrl_c_on_generate_with_two_workers_prints_one_line(tmp_path):
+    """Ctrl-C reaches the whole process group of ``generate --workers 2`` mid-run: exit 130 and
+    phyloc's one line only (the closing scheduler used to make a worker log a heartbeat
+    traceback); the shards finished before it are complete."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from test_datasets import TINY
+
+    from phyloc.datasets import schema as sc
+
+    recipe = tmp_path / "big.toml"
+    big = TINY.replace("n_subcarriers = 65", "n_subcarriers = 1025")
+    recipe.write_text(big.replace("realizations = 4", "realizations = 2000"))
+    out = tmp_path / "x.h5"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "phyloc.cli", "generate", str(recipe), "-o", str(out)]
+        + ["--workers", "2", "--no-progress"],
+        stderr=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        text=True,
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    sdir = sc.shard_dir(out)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(list(sdir.glob("shard-*.h5"))) < 3:
+        time.sleep(0.1)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == [
+        "phyloc: interrupted; finished shards are kept: run the same command with --resume "
+        "to finish it"
+    ], err
