@@ -23,6 +23,8 @@ import phyloc.datasets as pds
 import phyloc.datasets.shard as shard_mod
 from phyloc.datasets import schema as sc
 
+PHYLOC = [sys.executable, "-m", "phyloc.cli"]  # the command line, in a child process
+
 
 @pytest.fixture(autouse=True)
 def _quiet(monkeypatch):
@@ -166,8 +168,7 @@ def test_a_real_full_disk_with_two_workers_is_one_line(tmp_path):
         recipe.write_text(big.replace("realizations = 4", "realizations = 24"))  # ~14 MB
         out = where / "x.h5"
         proc = subprocess.run(
-            [sys.executable, "-m", "phyloc.cli", "generate", str(recipe), "-o", str(out)]
-            + ["--workers", "2", "--no-progress"],
+            [*PHYLOC, "generate", str(recipe), "-o", str(out), "--workers", "2", "--no-progress"],
             capture_output=True,
             text=True,
             timeout=300,

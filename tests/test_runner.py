@@ -1,6 +1,7 @@
 """Monte Carlo task runner: per-task streams make results independent of the worker count."""
 
 import logging
+
 import numpy as np
 
 from phyloc.parallel import run_tasks, task_seeds
@@ -148,13 +149,13 @@ def test_ctrl_c_on_generate_with_two_workers_prints_one_line(tmp_path):
 
     from phyloc.datasets import schema as sc
 
+    PHYLOC = [sys.executable, "-m", "phyloc.cli"]
     recipe = tmp_path / "big.toml"
     big = TINY.replace("n_subcarriers = 65", "n_subcarriers = 1025")
     recipe.write_text(big.replace("realizations = 4", "realizations = 2000"))
     out = tmp_path / "x.h5"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "phyloc.cli", "generate", str(recipe), "-o", str(out)]
-        + ["--workers", "2", "--no-progress"],
+        [*PHYLOC, "generate", str(recipe), "-o", str(out), "--workers", "2", "--no-progress"],
         stderr=subprocess.PIPE,
         stdout=subprocess.DEVNULL,
         text=True,
