@@ -24,6 +24,7 @@ TOML v1.0.0, https://toml.io/en/v1.0.0 (read with the standard library's ``tomll
 
 from __future__ import annotations
 
+import os
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -173,6 +174,68 @@ def too_deep(doc: dict) -> str | None:
     return None
 
 
+#: Recipe keys whose string values name a channel scenario: a shipped name or a file.
+SCENARIO_KEYS = ("scenario", "scenarios")
+
+
+def scenario_files_inside(doc: dict, folder: Path) -> dict:
+    """``doc`` with every scenario *file* it names resolved against the recipe's ``folder``,
+    refused when it lies outside that folder (links followed).
+
+    A recipe from someone else must not make phyloc read files elsewhere (a scenario file
+    that is ``/etc/passwd`` would be parsed, and its keys echoed in the error). A value of a
+    :data:`SCENARIO_KEYS` key is a file when it ends in ``.toml``, contains a path separator,
+    or names a file in ``folder``; shipped names (``"winner2_c2"``) pass unchanged.
+
+    >>> scenario_files_inside({"channel": {"scenario": "winner2_c2"}}, Path("."))
+    {'channel': {'scenario': 'winner2_c2'}}
+    >>> scenario_files_inside({"channel": {"scenario": "/etc/passwd"}}, Path("."))
+    Traceback (most recent call last):
+    ...
+    phyloc.errors.ValidationError: channel.scenario = /etc/passwd is not allowed: ...
+    """
+    root = Path(folder).resolve()
+
+    def fix(value, key):
+        if not isinstance(value, str) or not value:
+            return value
+        looks = value.endswith(".toml") or "/" in value or "\\" in value or os.sep in value
+        candidate = Path(value) if Path(value).is_absolute() else root / value
+        if not looks and not candidate.is_file():
+            return value  # a shipped name (or a typo the scenario loader names)
+        real = candidate.resolve()
+        if not real.is_relative_to(root):
+            raise ValidationError(
+                key,
+                value,
+                f"a scenario file in the recipe's folder {root} or below (a recipe may "
+                "not name files elsewhere: copy the file next to the recipe, or give a "
+                "shipped scenario name)",
+            )
+        return str(real)
+
+    def walk(node, prefix):
+        if isinstance(node, dict):
+            out = {}
+            for k, val in node.items():
+                key = f"{prefix}{k}"
+                if k in SCENARIO_KEYS and isinstance(val, str):
+                    out[k] = fix(val, key)
+                elif k in SCENARIO_KEYS and isinstance(val, list):
+                    out[k] = [fix(x, f"{key}[{i}]") for i, x in enumerate(val)]
+                elif k in SCENARIO_KEYS and isinstance(val, dict):
+                    out[k] = {
+                        t: fix(x, f"{key}.{t}") if isinstance(x, str) else walk(x, f"{key}.{t}.")
+                        for t, x in val.items()
+                    }
+                else:
+                    out[k] = walk(val, key + ".")
+            return out
+        return node
+
+    return walk(doc, "")
+
+
 def parse_recipe(doc: dict, *, text: str = "", path: Path | None = None, kinds=None) -> Recipe:
     """Validate a parsed recipe document (``kind`` one of ``kinds`` when given)."""
     check_keys(doc, [*TOP_LEVEL, *SECTIONS], "recipe")
@@ -195,6 +258,8 @@ def parse_recipe(doc: dict, *, text: str = "", path: Path | None = None, kinds=N
         system = OFDMSystem.from_dict(system_doc)
     except TypeError as exc:  # pragma: no cover - from_dict checks keys first
         raise ValidationError("system", system_doc, str(exc)) from None
+    if path is not None:
+        doc = scenario_files_inside(doc, Path(path).parent)
     sections = {s: doc[s] for s in SECTIONS if s in doc and s != "system"}
     return Recipe(
         kind=kind,

@@ -1,6 +1,7 @@
-"""A dataset from someone else cannot make phyloc read files outside its own folder: a master
-whose shard table names a path outside, or a shard that is a link to a file elsewhere, is
-refused in one line before anything is read."""
+"""A dataset or a recipe from someone else cannot make phyloc read files outside its own
+folder: a master whose shard table names a path outside, a shard that is a link to a file
+elsewhere, or a recipe naming a scenario file outside its folder is refused in one line before
+anything is read."""
 
 import os
 import shutil
@@ -55,3 +56,59 @@ def test_a_shard_linked_to_a_file_elsewhere_is_refused(dataset, tmp_path, capsys
     assert main(["info", str(dataset)]) == 2
     line = _one_line(capsys)
     assert shard.name in line and "outside" in line
+
+
+# -- recipes: a scenario file named in a recipe must lie in the recipe's folder ---------------
+def _recipe_naming(folder, scenario, key="scenario"):
+    text = RECIPE.replace('scenario = "awgn"', f"{key} = {scenario!r}".replace("'", '"'))
+    path = folder / "r.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("where", ["absolute", "parent", "link"])
+def test_a_recipe_cannot_name_a_scenario_file_outside_its_folder(tmp_path, capsys, where):
+    outside = tmp_path / "secret.toml"
+    outside.write_text("secret = 1\n")
+    folder = tmp_path / "given"
+    folder.mkdir()
+    value = {"absolute": str(outside), "parent": "../secret.toml", "link": "chan.toml"}[where]
+    if where == "link":
+        os.symlink(outside, folder / "chan.toml")
+    recipe = _recipe_naming(folder, value)
+    out = folder / "d.h5"
+    assert main(["generate", str(recipe), "-o", str(out)]) == 2
+    line = _one_line(capsys)
+    assert "channel.scenario" in line and value in line and str(folder) in line
+    assert "secret = 1" not in line and "secret" not in line.replace("secret.toml", "")
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        ["r.toml", *(["chan.toml"] if where == "link" else [])]
+    )
+
+
+def test_a_scenario_file_next_to_the_recipe_is_read_from_there(tmp_path, capsys, monkeypatch):
+    from phyloc.channels.scenario import shipped_root
+
+    folder = tmp_path / "given"
+    (folder / "chan").mkdir(parents=True)
+    shutil.copy(shipped_root() / "awgn.toml", folder / "chan" / "mine.toml")
+    recipe = _recipe_naming(folder, "chan/mine.toml")
+    elsewhere = tmp_path / "cwd"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)  # relative to the recipe, not to the working folder
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    assert main(["generate", str(recipe), "-o", str(folder / "d.h5")]) == 0
+
+
+def test_scenario_lists_and_tables_are_checked_too(tmp_path, capsys):
+    from phyloc.config import scenario_files_inside
+    from phyloc.errors import ValidationError
+
+    doc = {"experiment": {"scenarios": ["winner2_c2", "/etc/passwd"]}}
+    with pytest.raises(ValidationError, match=r"experiment\.scenarios\[1\]"):
+        scenario_files_inside(doc, tmp_path)
+    doc = {"experiment": {"scenarios": {"c2": "winner2_c2", "x": "../x.toml"}}}
+    with pytest.raises(ValidationError, match=r"experiment\.scenarios\.x"):
+        scenario_files_inside(doc, tmp_path)
+    ok = {"experiment": {"scenarios": {"s1": {"n_agents": 5}}, "scenario_localization": {}}}
+    assert scenario_files_inside(ok, tmp_path) == ok
