@@ -112,3 +112,49 @@ def test_scenario_lists_and_tables_are_checked_too(tmp_path, capsys):
         scenario_files_inside(doc, tmp_path)
     ok = {"experiment": {"scenarios": {"s1": {"n_agents": 5}}, "scenario_localization": {}}}
     assert scenario_files_inside(ok, tmp_path) == ok
+
+
+# -- HDF5 references to other files: external links, external raw data, virtual sources ------
+def test_a_master_with_an_external_link_is_refused(dataset, tmp_path, capsys):
+    target = tmp_path / "elsewhere.h5"
+    with h5py.File(target, "w") as f:
+        f["x"] = [1, 2, 3]
+    with h5py.File(dataset, "r+") as f:
+        f["sneaky"] = h5py.ExternalLink(str(target), "/x")
+    capsys.readouterr()
+    assert main(["info", str(dataset)]) == 2
+    line = _one_line(capsys)
+    assert "sneaky" in line and "external link" in line and str(target) in line
+
+
+def test_a_shard_keeping_data_in_an_external_file_is_refused(dataset, tmp_path, capsys):
+    """The crafted case: the shard's and the master's checksums recomputed to match, so only
+    the structure gives it away."""
+    from phyloc.datasets import schema as sc
+
+    secret = tmp_path / "secret.bin"
+    secret.write_bytes(b"\x01" * 64)
+    shard = sorted((dataset.parent / "d.h5.shards").glob("shard-*.h5"))[0]
+    with h5py.File(shard, "r+") as f:
+        f.create_dataset("leak", shape=(64,), dtype="u1", external=[(str(secret), 0, 64)])
+    with h5py.File(dataset, "r+") as f:
+        f["shards/file_sha256"][0] = sc.sha256_file(shard).encode()
+        f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)
+    capsys.readouterr()
+    assert main(["evaluate", str(dataset), "--fast", "--out", str(tmp_path / "res")]) == 2
+    line = _one_line(capsys)
+    assert shard.name in line and "leak" in line and "external file" in line
+    assert not (tmp_path / "res").exists()
+
+
+def test_an_import_source_with_an_external_link_is_refused(tmp_path, capsys):
+    target = tmp_path / "elsewhere.h5"
+    with h5py.File(target, "w") as f:
+        f["positions"] = [[0.0, 0.0]]
+    src = tmp_path / "given.h5"
+    with h5py.File(src, "w") as f:
+        f["received"] = h5py.ExternalLink(str(target), "/positions")
+    capsys.readouterr()
+    assert main(["import", str(src), "-o", str(tmp_path / "out.h5")]) == 2
+    line = _one_line(capsys)
+    assert "external link" in line and str(target) in line

@@ -103,6 +103,11 @@ def read_arrays(source) -> dict:
                     "is already a phyloc dataset: evaluate it directly, or export it first "
                     "(phyloc export) to get plain arrays",
                 )
+            outside = sc.outside_references(f, allow_virtual=False)
+            if outside:
+                raise ValidationError(
+                    "source", str(path), f"refused: {outside} (import reads only the file given)"
+                )
 
             def take(name, obj):
                 if isinstance(obj, h5py.Dataset):

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import time
 
+import h5py
+
 from phyloc.datasets import schema as sc
 from phyloc.datasets.reader import Dataset, _master_read, open_dataset
 
@@ -148,6 +150,13 @@ def check_shard_files(path) -> dict:
                 raise sc.DatasetError(
                     f"dataset {ds.path}: shard {j} ({sh['file'][j]}) differs from its SHA-256 "
                     f"in the master (corrupt or truncated); {repair}"
+                )
+            with h5py.File(file, "r") as f:  # HDF5 would follow these when reading it
+                outside = sc.outside_references(f, allow_virtual=False)
+            if outside:
+                raise sc.DatasetError(
+                    f"dataset {ds.path}: shard {j} ({sh['file'][j]}): {outside}; a dataset "
+                    "reads only its own files (refusing it)"
                 )
             n_bytes += file.stat().st_size
         n = ds.n_shards

@@ -224,6 +224,11 @@ class Dataset:
             for name in names - seen:
                 seen.add(name)
                 self._check_inside(name, f"{dset.name} (a virtual dataset's source)")
+        outside = sc.outside_references(self.file, allow_virtual=True)
+        if outside:
+            raise sc.DatasetError(
+                f"dataset {self.path}: {outside}; a dataset reads only its own files (refusing it)"
+            )
 
     def _virtual_datasets(self):
         out = []

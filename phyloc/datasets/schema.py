@@ -436,6 +436,40 @@ def check_version(attrs, path, expected_format: str) -> str:
 
 
 # -- shard checks (shared by resume and verify) ------------------------------------------------
+def outside_references(f, *, allow_virtual: bool) -> str | None:
+    """What in the open HDF5 file ``f`` would make a reader open *another* file, or None: an
+    external link, a dataset whose raw data lives in an external file, or (unless
+    ``allow_virtual``, as in a master, whose sources are checked by name) a virtual dataset.
+
+    A dataset from someone else must not make phyloc read files it was not given; HDF5
+    follows all three silently.
+    """
+    import h5py
+
+    found = []
+
+    def link(name, lk):
+        if isinstance(lk, h5py.ExternalLink):
+            found.append(f"{name} is an external link to {lk.filename!r}")
+            return True
+        return None
+
+    def obj(name, o):
+        if isinstance(o, h5py.Dataset):
+            if o.is_virtual and not allow_virtual:
+                found.append(f"{name} is a virtual dataset (a shard holds its own data)")
+                return True
+            if not o.is_virtual and o.id.get_create_plist().get_external_count() > 0:
+                found.append(f"{name} keeps its data in an external file")
+                return True
+        return None
+
+    f.visititems_links(link)
+    if not found:
+        f.visititems(obj)
+    return found[0] if found else None
+
+
 def check_shard(
     path,
     *,
@@ -477,6 +511,9 @@ def check_shard(
         if file_sha256 and digest != file_sha256:
             return None, "corrupt", "file SHA-256 differs from the master's record"
         with h5py.File(path, "r") as f:
+            outside = outside_references(f, allow_virtual=False)
+            if outside:
+                return None, "corrupt", f"refused: {outside}"
             try:
                 check_version(f.attrs, path, SHARD_FORMAT)
             except SchemaVersionError:
