@@ -394,3 +394,81 @@ def test_expected_scf_equals_the_theta_average_of_drawn_paths():
     q = (re**2 + im**2) / (norm * n * n)
     expect = cci.expected_scf("exponential", d0, [dd], SYSTEM, n_theta=256)[0]
     assert abs(q.mean() - expect) < 4 * q.std() / np.sqrt(n_links)
+
+
+# -- models without closed-form powers: tr38901 and tdl (powers from drawn links) -------------
+def test_drawn_powers_agree_with_the_closed_form_where_there_is_one():
+    """The estimator the tr38901 and tdl models use, applied to WINNER II C2, reproduces the
+    Gauss-Hermite closed form within its Monte Carlo error (lognormal SF: the relative s.e.
+    of a mean of 10^(SF/10) over n links is sqrt(exp((σ ln10/10)²) − 1)/sqrt(n))."""
+    n = 40_000
+    d = np.array([3.0, 40.0, 150.0])
+    closed = cci.expected_powers("winner2_c2", d, SYSTEM)
+    drawn = cci.drawn_powers("winner2_c2", d, SYSTEM, links=n, seed=77)
+    np.testing.assert_array_equal(drawn.p_los, closed.p_los)
+    for sigma_db, a, b in (
+        (8.0, drawn.los_direct_w, closed.los_direct_w),  # σ_SF <= 8 dB in C2
+        (8.0, drawn.nlos_total * drawn.los_direct_w, closed.nlos_total * closed.los_direct_w),
+        (8.0, drawn.los_scatter, closed.los_scatter),
+    ):
+        s = sigma_db * math.log(10) / 10
+        rel_se = math.sqrt(math.expm1(s * s)) / math.sqrt(n)
+        assert np.all(np.abs(a / b - 1) < 4.5 * rel_se), (a / b - 1, rel_se)
+
+
+@pytest.mark.parametrize("name", ["tr38901_umi", "tr38901_inf_dh", "tdl_d"])
+def test_the_los_ray_leads_every_drawn_los_link(name):
+    # drawn_powers takes the first path of a LOS link as its direct power: K/(K+1) of the
+    # link (TR 38.901 step 6), at excess delay 0
+    d = draw_links(name, np.linspace(5.0, 200.0, 2000), np.random.default_rng(5), condition="los")
+    first = d.paths.offsets[:-1]
+    assert np.all(d.excess_delays()[first] == 0.0)
+    if not name.startswith("tdl"):  # tdl: the other taps fade, so only the order is fixed
+        k = 10 ** (d.k_factor_db / 10)
+        p0 = np.abs(d.paths.gains[first]) ** 2
+        np.testing.assert_allclose(p0 / d.received_power_w, k / (k + 1), rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["tr38901_umi", "tr38901_inh_mixed", "tdl_d"])
+def test_drawn_model_monte_carlo_stays_below_its_bound(name):
+    """DiPNet eq. (44) bounds the CCI for any delays: the Monte Carlo CCI of TR 38.901 and TDL
+    links lies below the bound computed from their drawn powers (within its error)."""
+    rng = np.random.default_rng(2026)
+    d = np.array([0.3, 5.0, 30.0, 120.0])
+    pw = cci.expected_powers(name, d, SYSTEM)
+    bound = cci.cci_bound(pw, SYSTEM)
+    for i, d0 in enumerate(d):
+        m, se = cci.cci_monte_carlo(name, d0, 3000, rng, SYSTEM)
+        assert m - bound[i] < 4.0 * se + 0.02 * abs(bound[i]), (d0, m, bound[i], se)
+        assert m >= -pw.p_los[i] * 1.3 - 4 * se  # the direct path gives exactly −P_LOS
+
+
+def test_analyze_cci_of_tr38901_has_no_exponential_curve(tmp_path, capsys):
+    out = tmp_path / "c.json"
+    png = tmp_path / "c.png"
+    args = ["analyze", "cci", "tr38901_umi", "--links", "200", "--mc-points", "3"]
+    assert main([*args, "--json", str(out), "--png", str(png), "--no-progress"]) == 0
+    f = json.loads(out.read_text())["figures"]
+    assert f["cci.tr38901_umi.exponential.negative_above_m"] is None  # NaN: no App. III
+    assert "cci.tr38901_umi.mc_z" not in f and "cci.tr38901_umi.scf_argmax_offset_m" not in f
+    assert "n/a (drawn)" in capsys.readouterr().out and png.exists()
+
+
+def test_the_tr38901_cci_recipe_runs_fast_and_its_monte_carlo_respects_the_bound(
+    tmp_path, capsys, monkeypatch
+):
+    """``datasets/cci_tr38901.toml --fast`` (the CI setting of a recipe on the new channels):
+    every scenario's Monte Carlo CCI lies below the bound (44) within its error."""
+    from pathlib import Path
+
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    recipe = Path(__file__).parents[1] / "datasets" / "cci_tr38901.toml"
+    out = tmp_path / "res"
+    assert main(["evaluate", str(recipe), "--fast", "--out", str(out)]) == 0
+    doc = json.loads((out / "results.json").read_text())
+    f = doc["figures"]
+    assert len(doc["meta"]["scenarios"]) == 7
+    for s in doc["meta"]["scenarios"]:
+        assert f[f"cci.{s}.mc_above_bound_z"] < 4.0, s
+        assert f[f"cci.{s}.exponential.negative_above_m"] is None
+    assert (out / "cci_tr38901.png").exists()

@@ -306,27 +306,31 @@ def _los_split(par, sf_std_db):
     return direct, scatter
 
 
+#: Models whose expected powers have closed forms here (path loss, shadow fading, K-factor).
+CLOSED_FORM_MODELS = ("winner2", "exponential", "awgn")
+#: Models whose expected powers are estimated from drawn links (:func:`drawn_powers`): their
+#: cluster powers (TR 38.901 Sec. 7.5 steps 5-6, the removal of weak clusters, sub-clusters)
+#: or tap profiles (Sec. 7.7.2) have no closed form here, and their delays are not the
+#: exponential excess delays of DiPNet App. III (no ``exponential`` curve for them).
+DRAWN_MODELS = ("tr38901", "tdl")
+#: Links drawn per distance and condition for :func:`drawn_powers`, and their seed (the same
+#: at every distance: common random numbers give smooth curves in d0).
+DRAWN_LINKS = 4000
+DRAWN_SEED = 20201
+
+
 def require_los(scenario):
     """The loaded scenario; an error if it has no LOS part (the CCI's normalization) or its
-    model is not one whose powers and delays the closed forms know (winner2, exponential,
-    awgn): the tdl model's taps have fixed delays, not the exponential excess delays of
-    DiPNet App. III."""
+    model is none of :data:`CLOSED_FORM_MODELS` and :data:`DRAWN_MODELS`."""
     scn = load_scenario(scenario)
-    if scn.model not in ("winner2", "exponential", "awgn"):
-        why = {
-            "tdl": "its taps have fixed delays (3GPP TR 38.901 Sec. 7.7.2), not the "
-            "exponentially distributed excess delays of the closed form (DiPNet App. III)",
-            "tr38901": "its cluster powers and delays follow 3GPP TR 38.901 Sec. 7.5 (a "
-            "cluster power law, delay scaling by the K-factor, sub-clusters), whose expected "
-            "scatter power the closed form of DiPNet eqs. (43)-(44) does not cover",
-        }.get(scn.model, "its path powers are not given by a path-loss law and a K-factor")
-        if scn.los is None or scn.forced == "nlos":
-            why += ", and it has no LOS path, to whose power the indicator is normalized"
+    if scn.model not in (*CLOSED_FORM_MODELS, *DRAWN_MODELS):
         raise ValidationError(
             "scenario",
             scn.name,
-            f"the concavity indicator is computed for the winner2, exponential and awgn models; "
-            f"the {scn.model} model is not supported: {why}",
+            "the concavity indicator is computed for the "
+            + ", ".join((*CLOSED_FORM_MODELS, *DRAWN_MODELS))
+            + f" models; the {scn.model} model is not supported: its path powers are not "
+            "given by a path-loss law and a K-factor",
         )
     if scn.los is None or scn.forced == "nlos":
         raise ValidationError(
@@ -375,6 +379,8 @@ def expected_powers(scenario, d0_m, system: OFDMSystem | None = None, *, h_m=1.5
         raise ValidationError("d0_m", d.tolist()[:4], "a 1-D array of distances > 0 m")
     h = np.full(d.shape, v.positive("h_m", h_m))
     require_los(scn)
+    if scn.model in DRAWN_MODELS:
+        return drawn_powers(scn, d, system, h_m=float(h[0]))
     p_los = scn.p_los(d)
     pl_l, sf_l = scn.los.pathloss.evaluate(d, fc, h, h)
     direct, scatter = _los_split(scn.los, sf_l)
@@ -390,6 +396,50 @@ def expected_powers(scenario, d0_m, system: OFDMSystem | None = None, *, h_m=1.5
         los_scatter=scatter / direct,
         nlos_total=nlos_rel,
         los_direct_w=np.asarray(los_direct_w, dtype=np.float64),
+    )
+
+
+def drawn_powers(
+    scenario, d0_m, system: OFDMSystem | None = None, *, h_m=1.5, links=DRAWN_LINKS, seed=DRAWN_SEED
+) -> ExpectedPowers:
+    """:class:`ExpectedPowers` estimated from links drawn by
+    :func:`~phyloc.channels.draw_links` (the models of :data:`DRAWN_MODELS`).
+
+    At each distance ``links`` LOS links give ``E[A_0 | LOS]`` (the power of the first path,
+    the LOS ray, whose share of a link is ``K/(K+1)`` in TR 38.901 step 6) and the scatter
+    power; ``links`` NLOS links (when the scenario has an NLOS part) give the NLOS power.
+    Every distance uses the generator ``default_rng(seed)`` afresh (common random numbers),
+    so the estimates change smoothly with ``d0``; their relative Monte Carlo error is about
+    ``σ/√links`` of the drawn powers (a few per cent at the default).
+
+    >>> p = drawn_powers("tr38901_umi", [5.0, 50.0], links=500)
+    >>> p.p_los.round(3).tolist(), bool(np.all(p.los_scatter < 0.5))
+    ([1.0, 0.52], True)
+    """
+    scn = load_scenario(scenario)
+    system = OFDMSystem() if system is None else system
+    d = np.atleast_1d(np.asarray(d0_m, dtype=np.float64))
+    n = v.integer("links", links, minimum=2)
+    direct = np.zeros(d.size)
+    scatter = np.zeros(d.size)
+    nlos = np.zeros(d.size)
+    has_nlos = scn.nlos is not None and scn.forced != "los"
+    for i, d0 in enumerate(d):
+        rng = np.random.default_rng(seed)
+        kw = {"system": system, "h_tx_m": h_m, "h_rx_m": h_m}
+        los = draw_links(scn, np.full(n, d0), rng, condition="los", **kw)
+        p0 = np.abs(los.paths.gains[los.paths.offsets[:-1]]) ** 2  # the LOS ray leads
+        direct[i] = p0.mean()
+        scatter[i] = (los.received_power_w - p0).mean() / direct[i]
+        if has_nlos:
+            nl = draw_links(scn, np.full(n, d0), rng, condition="nlos", **kw)
+            nlos[i] = nl.received_power_w.mean() / direct[i]
+    return ExpectedPowers(
+        d0_m=d,
+        p_los=np.asarray(scn.p_los(d), dtype=np.float64),
+        los_scatter=scatter,
+        nlos_total=nlos,
+        los_direct_w=direct,
     )
 
 
@@ -611,7 +661,9 @@ def min_bandwidth_hz(powers: ExpectedPowers) -> np.ndarray:
 
 
 def cci_curves(scenario, system: OFDMSystem | None = None, *, points=400, d0_range_m=D0_RANGE_M):
-    """The closed-form curves of DiPNet Fig. 2 for one scenario and their summary numbers.
+    """The closed-form curves of DiPNet Fig. 2 for one scenario and their summary numbers
+    (for :data:`DRAWN_MODELS` the bound uses :func:`drawn_powers` and the exponential curve
+    is NaN).
 
     Returns
     -------
@@ -637,14 +689,18 @@ def cci_curves(scenario, system: OFDMSystem | None = None, *, points=400, d0_ran
         return float(cci_exponential(expected_powers(scn, [x], system), rates, system)[0])
 
     bound = cci_bound(pw, system)
-    expo = cci_exponential(pw, rates, system)
+    if scn.model in DRAWN_MODELS:  # no exponential delays: no App. III curve
+        expo, expo_above = np.full(d.shape, math.nan), math.nan
+    else:
+        expo = cci_exponential(pw, rates, system)
+        expo_above = negative_above(d, expo, expo_at)
     return {
         "d0_m": d,
         "bound": bound,
         "exponential": expo,
         "awgn": -pw.p_los,
         "negative_above_m": negative_above(d, bound, bound_at),
-        "exponential_negative_above_m": negative_above(d, expo, expo_at),
+        "exponential_negative_above_m": expo_above,
         "rates": rates,
         "powers": pw,
     }

@@ -22,6 +22,11 @@ Figures, for every scenario ``s`` (its name)::
     cci.s.scf_argmax_offset_m            where the expected SCF (DiPNet eq. (35), exponential
                                          delays) around the truth peaks, at distance_m [m]
 
+For the models of :data:`phyloc.analysis.cci.DRAWN_MODELS` (tr38901, tdl) the expected powers
+of the bound are estimated from drawn links (:func:`phyloc.analysis.cci.drawn_powers`); their
+delays are not exponential, so ``exponential.negative_above_m`` is NaN and there is no
+``mc_z`` and no expected SCF.
+
 Series: ``cci.s.d0_m``, ``.bound``, ``.exponential``, ``.awgn``, ``.p_los``,
 ``.other_power``, ``.min_bandwidth_hz``, ``cci.s.mc_d0_m``, ``.mc``, ``.mc_se`` and the
 expected SCF ``cci.s.scf`` over ``cci.s.scf_offset_m`` (±3 c0/B around the truth).
@@ -50,6 +55,7 @@ from scipy import stats
 from phyloc import _validate as v
 from phyloc.analysis.cci import (
     D0_RANGE_M,
+    DRAWN_MODELS,
     cci_bound,
     cci_curves,
     cci_exponential,
@@ -191,7 +197,9 @@ def summary_rows(results: dict):
             (
                 s,
                 _fmt(f[f"{p}.negative_above_m"]),
-                _fmt(f[f"{p}.exponential.negative_above_m"]),
+                _fmt(f[f"{p}.exponential.negative_above_m"])
+                if s in results["meta"].get("rates_per_s", {s: None})
+                else "n/a (drawn)",
                 "" if mc is None else _fmt(mc),
                 f.get(f"{p}.mc_z"),
                 _fmt(f[f"{p}.min_bandwidth_hz"] / 1e6),
@@ -222,7 +230,10 @@ def plot(results: dict, path) -> None:
         p = f"cci.{s}"
         d = ser[f"{p}.d0_m"]
         ax.plot(d, ser[f"{p}.bound"], "-", color=col, label=f"{s}: arbitrary δ, b (44)")
-        ax.plot(d, ser[f"{p}.exponential"], "--", color=col, label=f"{s}: exponential (App. III)")
+        if np.isfinite(np.asarray(ser[f"{p}.exponential"], dtype=float)).any():
+            ax.plot(
+                d, ser[f"{p}.exponential"], "--", color=col, label=f"{s}: exponential (App. III)"
+            )
         ax.plot(d, ser[f"{p}.awgn"], ":", color=col, label=f"{s}: AWGN, −P_LOS")
         if f"{p}.mc" in ser:
             ax.errorbar(
@@ -235,8 +246,11 @@ def plot(results: dict, path) -> None:
                 label=f"{s}: Monte Carlo (95 %: ±{_Z95:.2f} s.e.)",
             )
         bx.plot(d, np.asarray(ser[f"{p}.min_bandwidth_hz"]) / 1e6, color=col, label=s)
-        scf = np.asarray(ser[f"{p}.scf"])
-        cx.plot(np.asarray(ser[f"{p}.scf_offset_m"]) / unit, scf / scf.max(), color=col, label=s)
+        if f"{p}.scf" in ser:  # exponential delays only (not the drawn models)
+            scf = np.asarray(ser[f"{p}.scf"])
+            cx.plot(
+                np.asarray(ser[f"{p}.scf_offset_m"]) / unit, scf / scf.max(), color=col, label=s
+            )
     ax.axhline(0.0, color="k", lw=0.6)
     ax.set_xscale("log")
     ax.set_ylim(-1.15, 1.0)
@@ -253,11 +267,14 @@ def plot(results: dict, path) -> None:
     bx.set_title("Bandwidth that guarantees concavity")
     bx.grid(True, which="both", alpha=0.3)
     bx.legend(fontsize=7)
+    if not any(f"cci.{s}.scf" in ser for s in meta["scenarios"]):
+        cx.set_visible(False)  # the expected SCF needs exponential delays (none drawn here)
     cx.set_xlabel("agent displacement Δd [c0/B]")
     cx.set_ylabel("expected SCF / its maximum")
     cx.set_title(f"Expected SCF (35) around the truth, d0 = {meta['distance_m']:g} m")
     cx.grid(True, alpha=0.3)
-    cx.legend(fontsize=7)
+    if cx.get_visible():
+        cx.legend(fontsize=7)
     save_figure(fig, path)
 
 
@@ -326,25 +343,32 @@ class CCIExperiment(Experiment):
                     f"{p}.min_bandwidth_hz": min_bandwidth_hz(c["powers"]),
                 }
             )
-            offsets = np.linspace(-3.0, 3.0, 121) * C0 / system.bandwidth_hz
-            scf = expected_scf(scn, exp.distance_m, np.abs(offsets), system)
-            figures[f"{p}.scf_argmax_offset_m"] = float(abs(offsets[np.argmax(scf)]))
-            series.update({f"{p}.scf_offset_m": offsets, f"{p}.scf": scf})
+            drawn = scn.model in DRAWN_MODELS  # no exponential delays: no App. III, no SCF
+            if not drawn:
+                offsets = np.linspace(-3.0, 3.0, 121) * C0 / system.bandwidth_hz
+                scf = expected_scf(scn, exp.distance_m, np.abs(offsets), system)
+                figures[f"{p}.scf_argmax_offset_m"] = float(abs(offsets[np.argmax(scf)]))
+                series.update({f"{p}.scf_offset_m": offsets, f"{p}.scf": scf})
             if mc:
                 res = np.array(mc[j * exp.mc_points : (j + 1) * exp.mc_points])
                 m, se = res[:, 0], res[:, 1]
                 pw = expected_powers(scn, mc_d, system)
-                z_exp = _z(m - cci_exponential(pw, c["rates"], system), se)
                 z_bound = _z(m - cci_bound(pw, system), se)
                 figures[f"{p}.mc.negative_above_m"] = negative_above(mc_d, m)
-                figures[f"{p}.mc_z"] = float(np.max(np.abs(z_exp)))
+                if not drawn:
+                    z_exp = _z(m - cci_exponential(pw, c["rates"], system), se)
+                    figures[f"{p}.mc_z"] = float(np.max(np.abs(z_exp)))
                 figures[f"{p}.mc_above_bound_z"] = float(np.max(z_bound))
                 series.update({f"{p}.mc_d0_m": mc_d, f"{p}.mc": m, f"{p}.mc_se": se})
         return figures, series
 
     def meta(self, plan, ctx):
         system, exp, scns, _ = plan
-        rates = {name: exponential_rates(scn) for name, scn in scns.items()}
+        rates = {
+            name: exponential_rates(scn)
+            for name, scn in scns.items()
+            if scn.model not in DRAWN_MODELS
+        }
         return {
             "scenarios": list(scns),
             "bandwidth_hz": system.bandwidth_hz,
