@@ -416,7 +416,32 @@ def _channel_compare_zero_links(tmp_path):
     return ["channel-compare", "tr38901_umi", "--links", "0"], "--links"
 
 
+def _channel_compare_winner2(tmp_path):
+    return ["channel-compare", "winner2_c2", "--links", "100"], "winner2_c2"
+
+
+def _channel_compare_frequency_beyond_the_tables(tmp_path):
+    args = ["channel-compare", "tr38901_umi", "--carrier-frequency-hz", "1e12"]
+    return [*args, "--png", str(tmp_path / "c.png")], "--carrier-frequency-hz"
+
+
+def _cci_of_an_nlos_only_channel(tmp_path):
+    return ["analyze", "cci", "tdl_a", "--links", "0", "--png", str(tmp_path / "c.png")], "tdl_a"
+
+
+def _recipe_scenario_file_outside_its_folder(tmp_path):
+    (tmp_path / "chan.toml").write_text("model = 'awgn'\n")
+    (tmp_path / "r").mkdir()
+    recipe = tmp_path / "r" / "d.toml"
+    recipe.write_text(_sub(DATASET, 'scenario = "winner2_c2"', 'scenario = "../chan.toml"'))
+    return ["generate", str(recipe), "-o", str(tmp_path / "r" / "d.h5")], "channel.scenario"
+
+
 FILE_CASES = [
+    ("channel-compare-winner2", _channel_compare_winner2),
+    ("channel-compare-frequency-beyond-tables", _channel_compare_frequency_beyond_the_tables),
+    ("cci-of-an-nlos-only-channel", _cci_of_an_nlos_only_channel),
+    ("recipe-scenario-file-outside-its-folder", _recipe_scenario_file_outside_its_folder),
     ("tdl-file-negative-delay-spread", _tdl_negative_delay_spread),
     ("channel-compare-zero-links", _channel_compare_zero_links),
     ("channel-file-3000-levels-deep", _deep_channel_file),
