@@ -223,7 +223,11 @@ def summary_lines(results: dict):
 def plot(results: dict, path) -> None:
     """DiPNet Fig. 2 (CCI against d0) and the minimal bandwidth of eq. (44) against d0."""
     ser, meta = results["series"], results["meta"]
-    fig, (ax, bx, cx) = new_figure(1, 3, size=(16.0, 4.8), width_ratios=[1.5, 1, 1])
+    has_scf = any(f"cci.{s}.scf" in ser for s in meta["scenarios"])
+    if has_scf:
+        fig, (ax, bx, cx) = new_figure(1, 3, size=(16.0, 4.8), width_ratios=[1.5, 1, 1])
+    else:  # the expected SCF needs exponential delays (none of the drawn models has them)
+        fig, (ax, bx) = new_figure(1, 2, size=(12.0, 4.8), width_ratios=[1.5, 1])
     unit = C0 / meta["bandwidth_hz"]
     for i, s in enumerate(meta["scenarios"]):
         col = f"C{i}"
@@ -246,7 +250,7 @@ def plot(results: dict, path) -> None:
                 label=f"{s}: Monte Carlo (95 %: ±{_Z95:.2f} s.e.)",
             )
         bx.plot(d, np.asarray(ser[f"{p}.min_bandwidth_hz"]) / 1e6, color=col, label=s)
-        if f"{p}.scf" in ser:  # exponential delays only (not the drawn models)
+        if has_scf and f"{p}.scf" in ser:  # exponential delays only (not the drawn models)
             scf = np.asarray(ser[f"{p}.scf"])
             cx.plot(
                 np.asarray(ser[f"{p}.scf_offset_m"]) / unit, scf / scf.max(), color=col, label=s
@@ -267,14 +271,14 @@ def plot(results: dict, path) -> None:
     bx.set_title("Bandwidth that guarantees concavity")
     bx.grid(True, which="both", alpha=0.3)
     bx.legend(fontsize=7)
-    if not any(f"cci.{s}.scf" in ser for s in meta["scenarios"]):
-        cx.set_visible(False)  # the expected SCF needs exponential delays (none drawn here)
+    if not has_scf:
+        save_figure(fig, path)
+        return
     cx.set_xlabel("agent displacement Δd [c0/B]")
     cx.set_ylabel("expected SCF / its maximum")
     cx.set_title(f"Expected SCF (35) around the truth, d0 = {meta['distance_m']:g} m")
     cx.grid(True, alpha=0.3)
-    if cx.get_visible():
-        cx.legend(fontsize=7)
+    cx.legend(fontsize=7)
     save_figure(fig, path)
 
 
