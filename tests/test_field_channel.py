@@ -414,3 +414,25 @@ def test_bad_values_give_one_line_errors_naming_the_key(tmp_path, edit, key):
     msg = str(err.value)
     assert key in msg and "\n" not in msg
     assert msg.startswith("v.toml")
+
+
+def test_ground_reflection_off_keeps_every_other_path_of_the_same_draw(tmp_path):
+    """``[los.ground] reflection = false``: the ground-reflected path carries no power and the
+    same seed gives the same direct, structure and diffuse paths (a paired switch)."""
+    on = _variant(tmp_path, lambda doc: None, "on.toml")
+    off = _variant(tmp_path, lambda doc: doc["los"]["ground"].update(reflection=False), "off.toml")
+    d = np.linspace(5.0, 90.0, 400)
+    a = draw_links(str(on), d, np.random.default_rng(12))
+    b = draw_links(str(off), d, np.random.default_rng(12))
+    ga, gb = np.abs(a.paths.gains) ** 2, np.abs(b.paths.gains) ** 2
+    np.testing.assert_array_equal(a.paths.offsets, b.paths.offsets)
+    np.testing.assert_array_equal(a.paths.delays, b.paths.delays)
+    changed = np.abs(ga - gb) > 1e-9 * ga
+    # per link exactly one path differs (the ground one) and it carries no power when off;
+    # every other path, the direct one included, keeps its power (to rounding)
+    per_link = np.bincount(a.paths.link_index()[changed], minlength=d.size)
+    np.testing.assert_array_equal(per_link, np.ones(d.size, dtype=np.int64))
+    assert np.all(gb[changed] == 0.0) and np.all(ga[changed] > 0.0)
+    np.testing.assert_allclose(ga[~changed], gb[~changed], rtol=1e-9)
+    ground = (a.excess_delays()[changed] * C0 - (np.sqrt(d**2 + 3.0**2) - d)) / d
+    assert np.max(np.abs(ground)) < 1e-9  # at the two-ray excess (L_g - d)/c0, h = 1.5 m

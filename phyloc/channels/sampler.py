@@ -578,7 +578,7 @@ def _draw_field(
     amp2[:, 0] = a_dir**2
     prel[:, 0] = 0.0
     tau[:, 1] = excess / C0
-    amp2[:, 1] = (np.abs(gamma) * friis / length) ** 2
+    amp2[:, 1] = (np.abs(gamma) * friis / length) ** 2 if p.ground_reflection else 0.0
     prel[:, 1] = np.angle(gamma) - k * excess
     loss = 10.0 ** (-p.scatterer_reflection_loss_db / 10.0)
     tau[:, 2 : 2 + ks] = tau_s

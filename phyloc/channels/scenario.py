@@ -134,6 +134,7 @@ def _exponential_spec(condition: str) -> dict:
 
 _FIELD_SPEC = {
     "ground": {
+        "reflection": s.Flag(default=True),
         "polarization": s.Choice(("vertical", "horizontal")),
         "permittivity_a": s.Num(1.0, 100.0),
         "permittivity_b": s.Num(-2.0, 2.0),
@@ -281,6 +282,10 @@ class FieldCondition:
         Total diffuse power relative to the free-space power of the direct path [dB].
     nlos_bias_mean_s : float
         Always 0 (no NLOS part).
+    ground_reflection : bool
+        ``[los.ground] reflection`` (default true). False gives the ground-reflected path zero
+        power and changes nothing else: the same random draws give the same other paths, so
+        runs with and without it are paired (the cause of a difference isolated).
     """
 
     condition: str
@@ -296,6 +301,7 @@ class FieldCondition:
     diffuse_delay_spread_s: float
     diffuse_power_ratio_db: float
     nlos_bias_mean_s: float = 0.0
+    ground_reflection: bool = True
 
     @property
     def paths_per_link(self) -> int:
@@ -483,6 +489,7 @@ def _parse_field(table: dict, where: str) -> FieldCondition:
         )
     return FieldCondition(
         condition="los",
+        ground_reflection=g["reflection"],
         polarization=g["polarization"],
         permittivity_a=g["permittivity_a"],
         permittivity_b=g["permittivity_b"],
