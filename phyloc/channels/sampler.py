@@ -109,6 +109,8 @@ from phyloc.phy.system import C0, OFDMSystem
 #: K-factor range [dB] inside the LOS delay scaling D(K) (D > 0 on it).
 K_RANGE_FOR_DELAY_SCALING_DB = (-30.0, 40.0)
 RANGING_MODES = ("one_way", "two_way")
+#: ``[channel] heights``: the recipe's two antenna heights, or each node's own (3-D networks).
+HEIGHTS = ("fixed", "nodes")
 
 
 @dataclass(frozen=True, eq=False)
@@ -690,6 +692,10 @@ class ChannelSpec:
     h_e_m : float or None
         tr38901 scenarios only: environment height ``h_E`` [m] (>= 0) of the breakpoint
         distance (TR 38.901 Table 7.4.1-1); ``None`` (default): the scenario file's.
+    heights : {"fixed", "nodes"}
+        ``"fixed"`` (default): every link's ends are at ``h_tx_m`` / ``h_rx_m``. ``"nodes"``:
+        each end is at its node's height, the third coordinate of a 3-D network (anchors on
+        a ceiling, devices near the floor); ``h_tx_m`` / ``h_rx_m`` are then unused.
     """
 
     scenario: str = "winner2_c2"
@@ -700,6 +706,7 @@ class ChannelSpec:
     condition: str | None = None
     backward_carrier_frequency_hz: float | None = None
     h_e_m: float | None = None
+    heights: str = "fixed"
 
     def __post_init__(self):
         if not isinstance(self.scenario, str):
@@ -714,6 +721,8 @@ class ChannelSpec:
             )
         object.__setattr__(self, "h_tx_m", v.positive("channel.h_tx_m", self.h_tx_m))
         object.__setattr__(self, "h_rx_m", v.positive("channel.h_rx_m", self.h_rx_m))
+        if self.heights not in HEIGHTS:
+            raise ValidationError("channel.heights", self.heights, "'fixed' or 'nodes'")
         if self.condition is not None and self.condition not in CONDITIONS:
             raise ValidationError("channel.condition", self.condition, "'los', 'nlos' or absent")
         scn = self.load()
@@ -754,9 +763,12 @@ class ChannelSpec:
             f.name: getattr(self, f.name)
             for f in dataclasses.fields(self)
             if getattr(self, f.name) is not None
+            and not (f.name == "heights" and self.heights == "fixed")  # the default
         }
 
-    def draw(self, distances_m, rng: np.random.Generator, *, system=None) -> ChannelDraw:
+    def draw(
+        self, distances_m, rng: np.random.Generator, *, system=None, heights=None
+    ) -> ChannelDraw:
         """Draw the channels of a batch of links.
 
         One-way: :func:`draw_links`. Two-way: the condition is drawn once per link (it is a
@@ -769,19 +781,23 @@ class ChannelSpec:
         given (a copy of ``system`` with that carrier). The random streams are consumed alike
         either way; only the backward link's frequency-dependent quantities change (its path
         loss and, for a dual-slope law, the breakpoint distance and hence possibly σ_SF).
+
+        ``heights``: ``(h_tx, h_rx)`` per link [m] (``heights = "nodes"``: the transmitter's
+        and the receiver's node heights), replacing ``h_tx_m`` / ``h_rx_m``.
         """
+        h_tx, h_rx = (self.h_tx_m, self.h_rx_m) if heights is None else heights
         kw = dict(
             system=system,
             nlos_bias_mean_s=self.nlos_bias_mean_s,
-            h_tx_m=self.h_tx_m,
-            h_rx_m=self.h_rx_m,
+            h_tx_m=h_tx,
+            h_rx_m=h_rx,
             h_e_m=self.h_e_m,
         )
         scn = self.load()
         fwd = draw_links(scn, distances_m, rng, condition=self.condition, **kw)
         if self.ranging == "one_way":
             return fwd
-        kw["h_tx_m"], kw["h_rx_m"] = self.h_rx_m, self.h_tx_m
+        kw["h_tx_m"], kw["h_rx_m"] = h_rx, h_tx
         if self.backward_carrier_frequency_hz is not None:
             base = OFDMSystem() if system is None else system
             kw["system"] = dataclasses.replace(

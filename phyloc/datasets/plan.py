@@ -34,7 +34,7 @@ from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
 from phyloc.config import Recipe, dumps_toml, load_recipe
 from phyloc.datasets import schema as sc
-from phyloc.datasets.simulate import Realization, simulate_realization
+from phyloc.datasets.simulate import Realization, check_heights, simulate_realization
 from phyloc.datasets.spec import DatasetSpec
 from phyloc.errors import ValidationError
 from phyloc.network import IsolatedNodesWarning, NetworkSpec, make_network
@@ -188,6 +188,7 @@ def plan_dataset(recipe) -> DatasetPlan:
         )
     network = recipe.section("network", NetworkSpec, required=True)
     channel = recipe.section("channel", ChannelSpec)
+    check_heights(network, channel)
     dataset = recipe.section("dataset", DatasetSpec, required=True)
     system = recipe.system
     _check_sizes(network, system, dataset)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc.channels import ChannelDraw, ChannelSpec
+from phyloc.errors import ValidationError
 from phyloc.network import Network, NetworkSpec, make_network
 from phyloc.phy.synthesis import synthesize
 from phyloc.phy.system import OFDMSystem
@@ -57,16 +58,32 @@ class Realization:
         return len(self.links)
 
 
+def check_heights(networks, channels) -> None:
+    """Refuse, before any work, a ``[channel] heights = "nodes"`` with a 2-D network (a node's
+    height is its third coordinate). ``networks``, ``channels``: specs, or iterables of them."""
+    nets = [networks] if isinstance(networks, NetworkSpec) else list(networks)
+    chans = [channels] if isinstance(channels, ChannelSpec) else list(channels)
+    if any(c.heights == "nodes" for c in chans) and any(n.dim != 3 for n in nets):
+        raise ValidationError(
+            "channel.heights", "nodes", "needs network.dim = 3 (a node's height is its z)"
+        )
+
+
 def simulate_realization(
     system: OFDMSystem, network: NetworkSpec, channel: ChannelSpec, rng: np.random.Generator
 ) -> Realization:
     """Draw a network, its channels and the received signals of all links and snapshots."""
+    check_heights(network, channel)
     net = make_network(network, rng)
     links, draws = [], []
     for t in range(net.n_snapshots):
         lk = net.links_at(t)
         links.append(lk)
-        draws.append(channel.draw(net.distances(t), rng, system=system))
+        heights = None
+        if channel.heights == "nodes":  # (transmitter, receiver): u receives from v
+            z = net.positions[t][:, 2]
+            heights = (z[lk[:, 1]], z[lk[:, 0]])
+        draws.append(channel.draw(net.distances(t), rng, system=system, heights=heights))
     symbols = qpsk_symbols(system, net.n_nodes, rng)
     received = [
         synthesize(d.paths, symbols, system, rng, tx_index=lk[:, 1])
@@ -76,4 +93,4 @@ def simulate_realization(
     return Realization(net, symbols, links, received, draws, ways)
 
 
-__all__ = ["ChannelDraw", "Realization", "simulate_realization"]
+__all__ = ["ChannelDraw", "Realization", "check_heights", "simulate_realization"]

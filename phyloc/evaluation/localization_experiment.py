@@ -101,7 +101,7 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
-from phyloc.datasets.simulate import simulate_realization
+from phyloc.datasets.simulate import check_heights, simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment, RunContext
 from phyloc.evaluation.front_end import localize_realization
@@ -267,6 +267,7 @@ class LocalizationExperiment(Experiment):
         lspec = recipe.section("localization", LocalizationSpec)
         nets = network_specs(recipe.section("network"), exp.agents)
         specs = scenario_specs(recipe.section("channel", ChannelSpec), exp.scenarios)
+        check_heights(nets.values(), specs.values())
         lspecs = scenario_localization_specs(recipe, exp, lspec)
         for spec in lspecs.values():  # every label a direct-family method (methods.py)
             spec.plan(exp.methods)

@@ -63,7 +63,7 @@ import numpy as np
 
 from phyloc import _validate as v
 from phyloc.channels import ChannelSpec
-from phyloc.datasets.simulate import simulate_realization
+from phyloc.datasets.simulate import check_heights, simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.sections import RangingSpec, network_specs, scenario_specs
@@ -368,6 +368,7 @@ class RangingExperiment(Experiment):
         rspec = recipe.section("ranging", RangingSpec)
         nets = network_specs(recipe.section("network"), exp.agents)
         specs = scenario_specs(recipe.section("channel", ChannelSpec), exp.scenarios)
+        check_heights(nets.values(), specs.values())
         return SimpleNamespace(system=recipe.system, exp=exp, rspec=rspec, nets=nets, specs=specs)
 
     def tasks(self, plan):

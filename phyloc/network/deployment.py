@@ -240,6 +240,15 @@ class NetworkSpec:
         mover's row is overridden by its first waypoint. There is no pentagon shorthand in
         recipes (a table cannot say where the other agents go): paste the coordinates of
         :func:`pentagon`.
+    agent_height_m : float, optional
+        3-D networks with drawn agents: every agent's snapshot-0 height (its third coordinate)
+        [m], > 0, instead of a uniform draw — devices at a common height under anchors on
+        the ceiling (the TR 38.901 InF layouts). The draws are those without it (the drawn
+        heights are replaced), so the horizontal positions do not change.
+    cooperation : bool
+        True (default): agents measure each other as well as the anchors. False: only
+        agent–anchor links (a non-cooperative network; anchors required), the baseline a
+        cooperative method is compared with.
 
     Examples
     --------
@@ -263,6 +272,8 @@ class NetworkSpec:
     motion: MotionSpec = field(default_factory=MotionSpec)
     agents_m: tuple[tuple[float, ...], ...] | None = None
     density_per_km2: float | None = None
+    agent_height_m: float | None = None
+    cooperation: bool = True
 
     def __post_init__(self):
         s = "network"
@@ -366,6 +377,28 @@ class NetworkSpec:
                     f"must give exactly n_agents = {n_agents} positions",
                 )
             object.__setattr__(self, "agents_m", tuple(tuple(float(x) for x in row) for row in arr))
+        self._check_height_and_cooperation(s, dim)
+
+    def _check_height_and_cooperation(self, s: str, dim: int) -> None:
+        if self.agent_height_m is not None:
+            h = v.positive(f"{s}.agent_height_m", self.agent_height_m)
+            if dim != 3:
+                raise ValidationError(f"{s}.agent_height_m", h, "needs network.dim = 3")
+            if self.agents_m is not None:
+                raise ValidationError(
+                    f"{s}.agent_height_m",
+                    h,
+                    "cannot be given with agents_m (give the heights there)",
+                )
+            object.__setattr__(self, "agent_height_m", h)
+        if not isinstance(self.cooperation, bool):
+            raise ValidationError(f"{s}.cooperation", self.cooperation, "true or false")
+        if not self.cooperation and self.n_anchors == 0:
+            raise ValidationError(
+                f"{s}.cooperation",
+                False,
+                "a non-cooperative network measures only agent-anchor links: give anchors",
+            )
 
     @property
     def n_anchors(self) -> int:
@@ -411,6 +444,8 @@ class NetworkSpec:
             value = getattr(self, f.name)
             if value is None or (f.name == "region_m" and self.density_per_km2 is not None):
                 continue
+            if f.name == "cooperation" and value:  # the default, left out of older recipes
+                continue
             if f.name == "motion":
                 value = value.to_dict()
             elif f.name == "region_m":
@@ -447,6 +482,8 @@ class Network:
         output of a control loop, :func:`phyloc.control.loop.realized_network`); their
         positions are known to the localizers at every snapshot. Default False: a moving anchor
         is an error.
+    cooperative : bool
+        False: only agent–anchor pairs are links (:attr:`NetworkSpec.cooperation`).
     """
 
     positions: np.ndarray
@@ -456,6 +493,7 @@ class Network:
     accelerations: np.ndarray | None = None
     dt_s: float | None = None
     anchors_move: bool = False
+    cooperative: bool = True
     _links: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self):
@@ -547,8 +585,9 @@ class Network:
     def adjacency(self, snapshot: int = 0) -> np.ndarray:
         """Who hears whom: ``[n_nodes, n_nodes]`` bool, symmetric, zero diagonal.
 
-        ``u`` and ``v`` are adjacent when ``u != v``, not both are anchors, and
-        ``d_uv <= comm_range_m`` (always, when fully meshed).
+        ``u`` and ``v`` are adjacent when ``u != v``, not both are anchors, one of them is an
+        anchor if the network is not ``cooperative``, and ``d_uv <= comm_range_m`` (always,
+        when fully meshed).
         """
         k = self._snapshot(snapshot)
         n = self.n_nodes
@@ -559,6 +598,8 @@ class Network:
             return adj
         adj = ~np.eye(n, dtype=bool)
         adj &= ~(self.is_anchor[:, None] & self.is_anchor[None, :])
+        if not self.cooperative:  # agent-anchor links only
+            adj &= self.is_anchor[:, None] | self.is_anchor[None, :]
         return adj
 
     def _range_links(self, k: int) -> np.ndarray:
@@ -572,7 +613,11 @@ class Network:
         pairs = cKDTree(p).query_pairs(r * (1.0 + 1e-9) + 1e-12, output_type="ndarray")
         pairs = pairs.astype(np.int64).reshape(-1, 2)
         d = np.linalg.norm(p[pairs[:, 0]] - p[pairs[:, 1]], axis=-1)
-        pairs = pairs[(d <= r) & ~(self.is_anchor[pairs[:, 0]] & self.is_anchor[pairs[:, 1]])]
+        a0, a1 = self.is_anchor[pairs[:, 0]], self.is_anchor[pairs[:, 1]]
+        keep = (d <= r) & ~(a0 & a1)
+        if not self.cooperative:  # agent-anchor links only
+            keep &= a0 | a1
+        pairs = pairs[keep]
         links = np.concatenate([pairs, pairs[:, ::-1]])
         return links[np.lexsort((links[:, 1], links[:, 0]))]
 
@@ -681,6 +726,8 @@ def make_network(spec: NetworkSpec, rng: np.random.Generator) -> Network:
     side = np.asarray(spec.region_m)
     if spec.agents_m is None:
         agents0 = rng.uniform(0.0, side, size=(spec.n_agents, spec.dim))
+        if spec.agent_height_m is not None:
+            agents0[:, 2] = spec.agent_height_m
     else:
         agents0 = np.asarray(spec.agents_m, dtype=np.float64)
     if spec.anchors is None:
@@ -707,6 +754,7 @@ def make_network(spec: NetworkSpec, rng: np.random.Generator) -> Network:
         velocities=with_anchors(v_ag, 0.0),
         accelerations=with_anchors(a_ag, 0.0),
         dt_s=m.dt_s if m.n_snapshots > 1 else None,
+        cooperative=spec.cooperation,
     )
     _report_isolated(net, spec)
     return net
