@@ -66,7 +66,7 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.channels import ChannelSpec
-from phyloc.datasets.simulate import simulate_realization
+from phyloc.datasets.simulate import check_heights, simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.front_end import localize_realization
@@ -509,13 +509,16 @@ class DirectTrackingExperiment(Experiment):
                 )
         exp = self.experiment_spec(recipe, fast=fast)
         lspec = recipe.section("localization", LocalizationSpec)
+        chan = recipe.section("channel", ChannelSpec)
+        nets = exp.networks(dict(recipe.section("network")))
+        check_heights(nets.values(), chan)
         return SimpleNamespace(
             system=recipe.system,
             exp=exp,
             rspec=recipe.section("ranging", RangingSpec),
             lspec=lspec,
-            chan=recipe.section("channel", ChannelSpec),
-            nets=exp.networks(dict(recipe.section("network"))),
+            chan=chan,
+            nets=nets,
             plan=exp.plan(lspec),
         )
 
