@@ -92,3 +92,34 @@ def test_node_heights_in_a_2d_network_are_refused_before_any_work(tmp_path, caps
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "channel.heights" in err and "network.dim = 3" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_3d_run_with_anchors_reports_horizontal_error_points(tmp_path, capsys, monkeypatch):
+    """Horizontal errors (x, y only) and their 50/80/90 % points, each with an interval over
+    realizations; the horizontal RMSE never exceeds the 3-D one (it drops a coordinate)."""
+    import json
+
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    recipe = tmp_path / "hall.toml"
+    recipe.write_text(
+        'kind = "localization"\nname = "hall"\nseed = 3\n[system]\nn_subcarriers = 257\n'
+        "subcarrier_spacing_hz = 146.5e3\n[network]\ndim = 3\nregion_m = [60.0, 30.0, 3.0]\n"
+        f'anchors = {CEILING}\nagent_height_m = 1.5\n[channel]\nheights = "nodes"\n'
+        "[ranging]\nbeta = 8.0\nwindow_m = [0.0, 300.0]\n[localization]\nn_particles = 100\n"
+        "n_iterations = 2\ninformed_std_m = 3.0\n[experiment]\n"
+        'scenarios = { sl = "tr38901_inf_sl" }\nagents = [4]\nrealizations = 3\n'
+        'methods = ["corr"]\ninits = ["informed"]\ncdf_agents = [4]\n'
+    )
+    out = tmp_path / "res"
+    assert main(["evaluate", str(recipe), "--out", str(out)]) == 0
+    f = json.loads((out / "results.json").read_text())["figures"]
+    base = "corr.sl_informed.agents_4"
+    assert f[base + ".horizontal_rmse_m"] <= f[base + ".position_rmse_m"] + 1e-12
+    p = [f[f"{base}.horizontal_error_p{q}_m"] for q in (50, 80, 90)]
+    assert p[0] <= p[1] <= p[2]
+    for q in (50, 80, 90):
+        lo, hi = (
+            f[f"{base}.horizontal_error_p{q}_m.ci_low"],
+            f[f"{base}.horizontal_error_p{q}_m.ci_high"],
+        )
+        assert lo <= f[f"{base}.horizontal_error_p{q}_m"] <= hi

@@ -146,3 +146,43 @@ def test_bad_units_are_rejected():
         Pooled([1.0], [1.0], "median")
     with pytest.raises(ValidationError, match=r"Paired\.b"):
         Paired(Pooled.rmse([[1.0]]), Pooled.rmse([[1.0], [2.0]]))
+
+
+# -- quantiles of values pooled over units (cluster bootstrap) --------------------------------
+def test_quantile_point_is_the_inverted_cdf_quantile_of_all_values():
+    from phyloc.evaluation.statistics import Quantile
+
+    rng = np.random.default_rng(4)
+    units = [rng.exponential(1.0, 7 + i) for i in range(9)]
+    pooled = np.sort(np.concatenate(units))
+    for q in (0.5, 0.8, 0.9):
+        k = math.ceil(q * pooled.size) - 1  # the smallest value whose ECDF reaches q
+        assert Quantile(units, q).value == pooled[k]
+    with pytest.raises(ValidationError, match="Quantile.q"):
+        Quantile(units, 1.0)
+    assert all(math.isnan(x) for x in Quantile([units[0]], 0.5).interval())  # one unit
+
+
+@pytest.mark.slow
+def test_quantile_interval_covers_the_true_quantile_of_clustered_values():
+    """Errors of one realization share its conditions: unit i's values are ``(1 + u_i)·e``,
+    ``u_i ~ U(0, 1)``, ``e ~ Exp(1)``. Over 300 experiments of 30 units x 20 values the 95 %
+    interval of the 90 % point covers the true one (by numerical inversion of the mixture's
+    CDF) in 0.95 ± 3.5 s.e. of the trials."""
+    from scipy.optimize import brentq
+
+    from phyloc.evaluation.statistics import Quantile
+
+    def cdf(x):  # P[(1+u) e <= x] = 1 - E[exp(-x/(1+u))], u ~ U(0, 1)
+        u = (np.arange(4000) + 0.5) / 4000
+        return 1.0 - np.mean(np.exp(-x / (1.0 + u)))
+
+    truth = brentq(lambda x: cdf(x) - 0.9, 0.1, 20.0)
+    rng = np.random.default_rng(90)
+    hits, trials = 0, 300
+    for t in range(trials):
+        units = [(1.0 + rng.uniform()) * rng.exponential(1.0, 20) for _ in range(30)]
+        lo, hi = Quantile(units, 0.9).interval(seed=t, name="p90")
+        hits += lo <= truth <= hi
+    se = math.sqrt(0.95 * 0.05 / trials)
+    assert abs(hits / trials - 0.95) < 3.5 * se, hits / trials

@@ -422,12 +422,12 @@ def _run_outputs(key, res, meas, truth, pairs=None):
         },
     }
     if len(meas.anchor_nodes):  # anchors fix the frame: the absolute position errors too
-        out[key + "|pos_err"] = np.concatenate(
-            [
-                np.linalg.norm(np.asarray(res.estimates[t]) - truth[t][agents], axis=-1)
-                for t in range(T)
-            ]
-        )
+        diff = [np.asarray(res.estimates[t]) - truth[t][agents] for t in range(T)]
+        out[key + "|pos_err"] = np.concatenate([np.linalg.norm(e, axis=-1) for e in diff])
+        if diff[0].shape[-1] == 3:  # 3-D: the horizontal error too (3GPP positioning)
+            out[key + "|hpos_err"] = np.concatenate(
+                [np.linalg.norm(e[..., :2], axis=-1) for e in diff]
+            )
     if "ess_history" in diag:
         ess = diag["ess_history"][0]
         out[key + "|ess"], out[key + "|ess_min"] = ess.mean(axis=1), float(ess.min())

@@ -52,6 +52,11 @@ agent and snapshot),
 iteration, mean over runs),
 ``start.<token>.agents_<n>.framework_rmse_m`` (the prior centres themselves: what a method
 starts from — the coarse truth-free solution, or the perturbed truth),
+with anchors ``<method>.<token>.agents_<n>.position_rmse_m`` and the 50 / 80 / 90 % points of
+the absolute position errors ``.position_error_p{50,80,90}_m``, in 3-D also
+``.horizontal_rmse_m`` and ``.horizontal_error_p{50,80,90}_m`` (the horizontal error 3GPP
+positioning studies report; intervals from the cluster bootstrap over realizations,
+:class:`~phyloc.evaluation.statistics.Quantile`),
 ``<method>.<token>.agents_<n>.framework_rmse_observable_m`` (DiPNet eq. (4) over the *observable*
 pairs only: those whose distance the detected links determine, :func:`observable_pairs`),
 ``<token>.agents_<n>.unobservable_pair_fraction`` (the share of pairs left out there: no method,
@@ -113,7 +118,7 @@ from phyloc.evaluation.sections import (
     network_specs,
     scenario_specs,
 )
-from phyloc.evaluation.statistics import Paired, Pooled
+from phyloc.evaluation.statistics import Paired, Pooled, Quantile
 from phyloc.localization import METHODS as REGISTRY
 from phyloc.reporting import with_interval
 
@@ -440,6 +445,7 @@ def _aggregate(keys, results, exp, tokens):
                         figures[base + ".position_rmse_m"] = Pooled.rmse(
                             [r[key + "|pos_err"] for r in runs]
                         )
+                        figures.update(_error_points(runs, key, base))
                         pos = np.concatenate([r[key + "|pos_err"] for r in runs])
                         series[base + ".position_error_cdf"] = np.searchsorted(
                             np.sort(pos), CDF_GRID_M, side="right"
@@ -556,6 +562,26 @@ def _chain_s(run, label, init) -> float:
     if own is not None and own != "corr":
         total += stage.get(f"ranging_{own}", 0.0)
     return total
+
+
+#: The points of an absolute error CDF reported with intervals (3GPP positioning: 50/80/90 %).
+ERROR_POINTS = (50, 80, 90)
+
+
+def _error_points(runs, key, base) -> dict:
+    """With anchors: the 50/80/90 % points of the position errors and, in 3-D, the
+    horizontal RMSE and points (:class:`~phyloc.evaluation.statistics.Quantile`, a unit per
+    realization)."""
+    out = {}
+    for tag, suffix in (("position", "|pos_err"), ("horizontal", "|hpos_err")):
+        if key + suffix not in runs[0]:
+            continue
+        errs = [r[key + suffix] for r in runs]
+        if tag == "horizontal":
+            out[base + ".horizontal_rmse_m"] = Pooled.rmse(errs)
+        for q in ERROR_POINTS:
+            out[f"{base}.{tag}_error_p{q}_m"] = Quantile(errs, q / 100.0)
+    return out
 
 
 def _observable(runs):

@@ -10,6 +10,10 @@ values and their number; the successes and the trials), and how they combine::
     "mean"      Σ num / Σ den              bootstrap over units (BCa)
     "fraction"  Σ num / Σ den              exact binomial (Clopper–Pearson) on the totals
 
+A quantile of values pooled over units (the 50 / 80 / 90 % points of an error CDF) is a
+:class:`Quantile` value: its interval comes from the cluster bootstrap, which resamples whole
+units and takes the quantile of their pooled values (percentile interval).
+
 A comparison of two figures over the *same* units (methods run on the same realizations) is a
 :class:`Paired` value: the ratio of the two figures, with its interval from the bootstrap that
 resamples the same units for both (a paired bootstrap).
@@ -136,6 +140,63 @@ class Pooled:
         if self.point is not None:
             return float(self.point)
         return _combine(self.num, self.den, self.kind)
+
+
+@dataclass(frozen=True, eq=False)
+class Quantile:
+    """The ``q``-quantile of values pooled over units, e.g. the 90 % point of the position
+    errors of every agent of every realization (a unit: a realization).
+
+    The point value is the inverted-CDF quantile of all values (the smallest value whose
+    empirical CDF reaches ``q``; what the CDF figure shows). Its 95 % interval resamples
+    units, not values (the errors of one realization are not independent): per resample the
+    units are drawn with replacement and the quantile of their pooled values taken; the
+    interval is the percentile one of :data:`N_RESAMPLES` such quantiles (NaN with fewer than
+    two units).
+
+    >>> Quantile([[1.0, 2.0], [3.0, 4.0]], 0.5).value
+    2.0
+    """
+
+    values: tuple
+    q: float
+
+    def __post_init__(self):
+        vals = tuple(np.asarray(x, dtype=np.float64).ravel() for x in self.values)
+        if not 0.0 < float(self.q) < 1.0:
+            raise ValidationError("Quantile.q", self.q, "a probability in (0, 1)")
+        object.__setattr__(self, "values", vals)
+
+    @property
+    def value(self) -> float:
+        """The quantile of all units' values pooled (NaN without values)."""
+        pooled = np.concatenate(self.values) if self.values else np.zeros(0)
+        if pooled.size == 0:
+            return math.nan
+        return float(np.quantile(pooled, self.q, method="inverted_cdf"))
+
+    def interval(self, *, seed: int = 0, name: str = "") -> tuple[float, float]:
+        """The 95 % cluster-bootstrap interval (see the class)."""
+        units = [x for x in self.values if x.size]
+        n = len(units)
+        if n < 2:
+            return math.nan, math.nan
+        pooled = np.concatenate(units)
+        label = np.repeat(np.arange(n), [x.size for x in units])
+        order = np.argsort(pooled, kind="stable")
+        values, label = pooled[order], label[order]
+        rng = _stream(seed, name)
+        out = np.empty(N_RESAMPLES)
+        block = max(1, 2_000_000 // values.size)  # resamples at a time: bounded memory
+        for i in range(0, N_RESAMPLES, block):
+            k = min(block, N_RESAMPLES - i)
+            counts = rng.multinomial(n, np.full(n, 1.0 / n), size=k)  # units drawn per resample
+            cw = np.cumsum(counts[:, label], axis=1, dtype=np.float64)
+            reach = cw >= self.q * cw[:, -1:]
+            out[i : i + k] = values[reach.argmax(axis=1)]  # the inverted-CDF quantile
+        alpha = (1.0 - CONFIDENCE) / 2.0
+        lo, hi = np.quantile(out, [alpha, 1.0 - alpha])
+        return float(lo), float(hi)
 
 
 @dataclass(frozen=True)
@@ -265,6 +326,9 @@ def resolve(figures: dict, series: dict, *, seed: int = 0) -> tuple[dict, dict]:
             out_f[name] = x.value
             out_f[name + ".ci_low"], out_f[name + ".ci_high"] = lo, hi
             out_s[name + ".units"] = {"kind": x.kind, "num": x.num, "den": x.den}
+        elif isinstance(x, Quantile):
+            out_f[name] = x.value
+            out_f[name + ".ci_low"], out_f[name + ".ci_high"] = x.interval(seed=seed, name=name)
         elif isinstance(x, Paired):
             key = name + ".ratio"
             lo, hi = paired_interval(x, seed=seed, name=key)
