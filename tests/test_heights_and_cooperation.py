@@ -57,7 +57,7 @@ def test_a_non_cooperative_network_links_agents_to_anchors_only(comm_range_m):
 
 
 def test_a_non_cooperative_network_needs_anchors():
-    with pytest.raises(ValidationError, match="network.cooperation"):
+    with pytest.raises(ValidationError, match=r"network\.cooperation"):
         NetworkSpec.from_dict({"n_agents": 4, "cooperation": False})
 
 

@@ -158,7 +158,7 @@ def test_quantile_point_is_the_inverted_cdf_quantile_of_all_values():
     for q in (0.5, 0.8, 0.9):
         k = math.ceil(q * pooled.size) - 1  # the smallest value whose ECDF reaches q
         assert Quantile(units, q).value == pooled[k]
-    with pytest.raises(ValidationError, match="Quantile.q"):
+    with pytest.raises(ValidationError, match=r"Quantile\.q"):
         Quantile(units, 1.0)
     assert all(math.isnan(x) for x in Quantile([units[0]], 0.5).interval())  # one unit
 
