@@ -123,3 +123,24 @@ def test_a_3d_run_with_anchors_reports_horizontal_error_points(tmp_path, capsys,
             f[f"{base}.horizontal_error_p{q}_m.ci_high"],
         )
         assert lo <= f[f"{base}.horizontal_error_p{q}_m"] <= hi
+
+
+@pytest.mark.parametrize("name", ["inf_positioning", "inf_positioning_noncoop"])
+def test_the_inf_positioning_recipes_run_fast(tmp_path, monkeypatch, name):
+    """The CI setting of the indoor-factory recipes (TR 38.901 InF, ceiling anchors): every
+    method reports horizontal errors no larger than its 3-D ones, and ordered CDF points."""
+    import json
+    from pathlib import Path
+
+    monkeypatch.setenv("PHYLOC_NO_PROGRESS", "1")
+    recipe = Path(__file__).parents[1] / "datasets" / f"{name}.toml"
+    out = tmp_path / "res"
+    assert main(["evaluate", str(recipe), "--fast", "--out", str(out)]) == 0
+    doc = json.loads((out / "results.json").read_text())
+    f = doc["figures"]
+    for m in doc["meta"]["methods"]:
+        for s in ("sl", "dh"):
+            base = f"{m}.{s}.agents_6"
+            assert f[base + ".horizontal_rmse_m"] <= f[base + ".position_rmse_m"] + 1e-9
+            p = [f[f"{base}.horizontal_error_p{q}_m"] for q in (50, 80, 90)]
+            assert all(math.isfinite(x) for x in p) and p[0] <= p[1] <= p[2]
