@@ -182,8 +182,9 @@ def _z(diff, se):
 _Z95 = float(stats.norm.ppf(0.5 + CONFIDENCE / 2))
 
 
-def _fmt(x: float) -> str:
-    return "never" if not math.isfinite(x) else f"{x:.3g}"
+def _fmt(x) -> str:
+    """A threshold for the table; NaN (None once read back from JSON) is "never"."""
+    return "never" if x is None or not math.isfinite(x) else f"{x:.3g}"
 
 
 def summary_rows(results: dict):
@@ -202,7 +203,9 @@ def summary_rows(results: dict):
                 else "n/a (drawn)",
                 "" if mc is None else _fmt(mc),
                 f.get(f"{p}.mc_z"),
-                _fmt(f[f"{p}.min_bandwidth_hz"] / 1e6),
+                _fmt(
+                    None if f[f"{p}.min_bandwidth_hz"] is None else f[f"{p}.min_bandwidth_hz"] / 1e6
+                ),
             )
         )
     return rows
@@ -249,7 +252,8 @@ def plot(results: dict, path) -> None:
                 color=col,
                 label=f"{s}: Monte Carlo (95 %: ±{_Z95:.2f} s.e.)",
             )
-        bx.plot(d, np.asarray(ser[f"{p}.min_bandwidth_hz"]) / 1e6, color=col, label=s)
+        b_min = np.asarray(ser[f"{p}.min_bandwidth_hz"], dtype=float)  # JSON null: NaN
+        bx.plot(d, b_min / 1e6, color=col, label=s)
         if has_scf and f"{p}.scf" in ser:  # exponential delays only (not the drawn models)
             scf = np.asarray(ser[f"{p}.scf"])
             cx.plot(
