@@ -51,6 +51,7 @@ from tqdm.auto import tqdm
 
 from phyloc import _validate as v
 from phyloc._files import write_atomic
+from phyloc.errors import PhylocError
 
 
 def task_seeds(seed: int, n_tasks: int) -> list[np.random.SeedSequence]:
@@ -114,8 +115,6 @@ class _ReportErrors:
         self.fn = fn
 
     def __call__(self, payload, seed):
-        from phyloc.errors import PhylocError
-
         try:
             return self.fn(payload, seed)
         except PhylocError as exc:
@@ -261,8 +260,6 @@ def connect(scheduler: str):
     """
     from dask.distributed import Client
 
-    from phyloc.errors import PhylocError
-
     try:
         return Client(scheduler, timeout=f"{SCHEDULER_TIMEOUT_S}s")
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
@@ -271,6 +268,21 @@ def connect(scheduler: str):
             f"cannot connect to the Dask scheduler at {scheduler!r} ({why}); start one with "
             "`dask scheduler` (it prints its tcp://host:port address) or check the address"
         ) from None
+
+
+class WorkerDiedError(PhylocError):
+    """Dask gave up on a task whose workers kept dying (``KilledWorker``): most often the task
+    needs more memory than a worker may use (an embedded cluster splits the machine's memory
+    between its workers and restarts one that exceeds its share)."""
+
+    def __init__(self, index: int, n: int, workers, scheduler):
+        where = f"the workers of {scheduler}" if scheduler else f"{workers} embedded workers"
+        super().__init__(
+            f"task {index + 1} of {n} killed its Dask worker every time it ran ({where}); most "
+            "often it needs more memory than a worker's share of the machine. Run it with "
+            "--workers 1 (in this process, the whole memory) or on machines with more memory; "
+            "finished tasks are kept: add --resume"
+        )
 
 
 def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show, on_result=None):
@@ -283,7 +295,14 @@ def _run_dask(fn, payloads, seeds, *, workers, scheduler, desc, show, on_result=
         bar = tqdm(total=len(futures), desc=desc, disable=not show, leave=False)
         for fut in as_completed(futures):
             i = index[fut.key]
-            results[i] = fut.result()
+            try:
+                results[i] = fut.result()
+            except Exception as exc:
+                if type(exc).__name__ != "KilledWorker":
+                    raise
+                client.cancel(futures)
+                bar.close()
+                raise WorkerDiedError(i, len(futures), workers, scheduler) from None
             if isinstance(results[i], _Failed):
                 client.cancel(futures)
                 bar.close()

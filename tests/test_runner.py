@@ -173,3 +173,29 @@ def test_ctrl_c_on_generate_with_two_workers_prints_one_line(tmp_path):
         "phyloc: interrupted; finished shards are kept: run the same command with --resume "
         "to finish it"
     ], err
+
+
+def _kills_its_worker(payload, seed_seq):
+    import os
+
+    if payload == 2:
+        os._exit(3)  # the worker process dies, as one killed for its memory does
+    return payload
+
+
+def test_a_task_that_kills_every_worker_it_runs_on_is_one_actionable_error():
+    """Dask retries a task whose worker died, then gives up (``KilledWorker``). That used to
+    reach the user as "internal error: KilledWorker ..."; it is phyloc's own error naming the
+    task, the likely cause (memory per worker) and what to run instead."""
+    import dask
+    import pytest
+
+    from phyloc.errors import PhylocError
+    from phyloc.parallel import WorkerDiedError
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        with pytest.raises(WorkerDiedError) as info:
+            run_tasks(_kills_its_worker, [0, 1, 2, 3], 5, workers=2, progress=False)
+    msg = str(info.value)
+    assert isinstance(info.value, PhylocError) and "\n" not in msg
+    assert "task 3 of 4" in msg and "--workers 1" in msg and "--resume" in msg
