@@ -57,7 +57,7 @@ from phyloc.datasets.plan import (
 )
 from phyloc.datasets.shard import ShardTask, crash_modes, write_shard
 from phyloc.errors import ValidationError
-from phyloc.parallel import threads_per_task
+from phyloc.parallel import _Failed, threads_per_task
 
 _MASTER_EVERY_S = 2.0  # rewrite the master at most this often while shards complete
 
@@ -324,17 +324,10 @@ def _run_here(tasks, done) -> None:
                 return
 
 
-class _Failed:
-    """A shard's expected failure (a full disk, a denied folder, a phyloc error) returned as
-    the task's value: reported once, in phyloc's one line, not also in the worker's
-    "Compute Failed" log."""
-
-    def __init__(self, error):
-        self.error = error
-
-
 def _write_reporting(task):
-    """:func:`write_shard`, its ``OSError``/``PhylocError`` returned as :class:`_Failed`."""
+    """:func:`write_shard`, its expected failures (``OSError``: a full disk, a denied folder;
+    ``PhylocError``) returned as the runner's :class:`~phyloc.parallel._Failed`: reported once,
+    in phyloc's one line, not also in the worker's "Compute Failed" log."""
     from phyloc.errors import PhylocError
 
     try:
