@@ -26,12 +26,7 @@ P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEE
 Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
 """
 
-from phyloc.channels.sampler import (
-    ChannelDraw,
-    ChannelSpec,
-    draw_links,
-    two_way_composite,
-)
+from phyloc.channels.sampler import ChannelDraw, draw_links
 from phyloc.channels.scenario import (
     DEFAULT_NLOS_BIAS_MEAN_S,
     Scenario,
@@ -39,6 +34,7 @@ from phyloc.channels.scenario import (
     load_scenario,
     scenario_names,
 )
+from phyloc.channels.spec import ChannelSpec, two_way_composite
 
 __all__ = [
     "DEFAULT_NLOS_BIAS_MEAN_S",
