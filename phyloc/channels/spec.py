@@ -4,9 +4,9 @@ per-link draws of :func:`phyloc.channels.sampler.draw_links`.
 
 References
 ----------
-DiPNet §II-B (two-way ranging): S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner,
-A. Dammann, H. Wymeersch and P. A. Hoeher, "Distributed direct localization suitable for dense
-networks," IEEE Trans. Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020. Two-way ranging: its §II-B.
 """
 
 from __future__ import annotations
