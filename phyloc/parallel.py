@@ -232,6 +232,33 @@ def local_cluster(workers: int):
 
 
 @contextlib.contextmanager
+def _quiet_dask_logs():
+    """Silence this process's ``distributed`` loggers (the embedded scheduler and nannies) for
+    the life of an embedded cluster, its teardown included, and restore them after.
+
+    phyloc reports every failure of a task itself, in one line. When Ctrl-C closes the cluster
+    while tasks run, the closing scheduler logs a CRITICAL "Closed comm ... lost-data" with a
+    traceback; ``silence_logs`` of ``LocalCluster`` does not cover it, because it restores the
+    handlers' level before the scheduler has finished closing."""
+    import logging
+
+    names = ["distributed"] + [
+        name
+        for name, logger in logging.root.manager.loggerDict.items()
+        if name.startswith("distributed.") and getattr(logger, "level", 0)  # own level set
+    ]
+    loggers = [logging.getLogger(name) for name in names]
+    old = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for logger, level in zip(loggers, old, strict=True):
+            logger.setLevel(level)
+
+
+@contextlib.contextmanager
 def dask_client(*, workers=None, scheduler=None):
     """A Dask client: on an embedded ``LocalCluster`` of ``workers`` single-threaded processes,
     or connected to ``scheduler`` (an address); closed (and the cluster stopped) on exit."""
@@ -239,6 +266,7 @@ def dask_client(*, workers=None, scheduler=None):
 
     with contextlib.ExitStack() as stack:
         if scheduler is None:
+            stack.enter_context(_quiet_dask_logs())  # entered first: it also covers the teardown
             cluster = stack.enter_context(local_cluster(int(workers)))
             yield stack.enter_context(Client(cluster))
         else:

@@ -128,6 +128,22 @@ def test_embedded_workers_leave_ctrl_c_to_the_client():
     assert set(levels.values()) == {logging.CRITICAL}
 
 
+def test_the_embedded_scheduler_says_nothing_until_its_teardown_ends():
+    """The embedded scheduler runs in phyloc's own process: while Ctrl-C closes it with tasks
+    in flight it logs a CRITICAL "Closed comm ... lost-data" traceback, which the Ctrl-C test
+    above saw on CI. Its loggers are silenced for the cluster's whole life, the teardown
+    included (the exit stack unwinds the silencing last), and restored afterwards."""
+    from phyloc.parallel import dask_client
+
+    scheduler_log = logging.getLogger("distributed.scheduler")
+    assert scheduler_log.isEnabledFor(logging.CRITICAL)
+    with dask_client(workers=1) as client:
+        client.wait_for_workers(1, timeout=60)
+        assert not scheduler_log.isEnabledFor(logging.CRITICAL)
+        assert not logging.getLogger("distributed.client").isEnabledFor(logging.CRITICAL)
+    assert scheduler_log.isEnabledFor(logging.CRITICAL)
+
+
 def _worker_log_level():
     """The least level a worker's ``distributed`` log handlers print (Dask's
     ``silence_logs`` sets the handlers, not the loggers)."""
