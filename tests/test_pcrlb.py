@@ -89,6 +89,13 @@ def test_pcrlb_information_vs_bound_average_closed_form():
     res_b = pcrlb(scs, P0, average="bound")
     np.testing.assert_allclose(res_b.cov[0], C_bound, rtol=1e-10)
     assert res_b.bounds["p"][0] > 1.5 * pcrlb(scs, P0).bounds["p"][0]
+    # each scenario's own mean-square bound, in order: the closed-form traces
+    np.testing.assert_allclose(
+        res_b.per_scenario["p"][:, 0],
+        [np.trace(np.linalg.inv(J_all)), np.trace(np.linalg.inv(J_one))],
+        rtol=1e-10,
+    )
+    assert pcrlb(scs, P0).per_scenario is None  # averaged information: no per-run bounds
     # identical scenarios: both averages coincide
     same = [scs[0], scs[0]]
     np.testing.assert_allclose(

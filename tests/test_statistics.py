@@ -114,6 +114,19 @@ def test_resolve_writes_values_intervals_and_units():
     assert units_of(ser, "a").kind == "rmse"
 
 
+def test_a_paired_figure_can_keep_its_own_name():
+    """A ratio by definition (an RMSE over its bound) is written under its name, not
+    ``.ratio``, with the same paired interval."""
+    rng = np.random.default_rng(12)
+    a = Pooled.rmse([rng.normal(size=4) for _ in range(30)])
+    b = Pooled(rng.uniform(0.5, 1.5, 30), np.ones(30), "rmse")
+    figs, _ = resolve({"r": Paired(a, b, suffix="")}, {}, seed=2)
+    assert set(figs) == {"r", "r.ci_low", "r.ci_high"}
+    assert figs["r"] == pytest.approx(a.value / b.value)
+    lo, hi = paired_interval(Paired(a, b), seed=2, name="r")
+    assert (figs["r.ci_low"], figs["r.ci_high"]) == (lo, hi) and lo < figs["r"] < hi
+
+
 def test_unpaired_ratio_interval_matches_brute_force():
     """Figures of different units (network sizes): each resampled on its own; the BCa
     interval is close to the brute-force percentile interval of the ratio."""

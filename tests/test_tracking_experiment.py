@@ -72,6 +72,8 @@ def test_pooled_figures_have_intervals_and_one_value_per_run(tiny):
             expected += [f"{m}.s1.k{k}.outage_{x}" for x in ("0p1m", "0p3m", "1m")]
         expected += [f"{m}.s1.step_s"] + ([f"{m}.s1.agent_s"] if m != "edh" else [])
     expected.append("s1.anchor_localizable_fraction")
+    for k in meta["report_steps"]:  # the conditional bound: the mean of the runs' own bounds
+        expected += [f"pcrlb_cond.s1.k{k}.{q}" for q in ("p_m", "v_m_s", "a_m_s2")]
     assert sorted(names) == sorted(expected)
     for n in names:
         u = ser[n + ".units"]
@@ -94,6 +96,10 @@ def test_pooled_figures_have_intervals_and_one_value_per_run(tiny):
         elif ".outage_" in n:
             assert u["kind"] == "fraction" and den == [n_agents] * runs
             assert all(x == int(x) and 0 <= x <= n_agents for x in num)
+        elif n.startswith("pcrlb_cond."):  # per run: its mean-square bound, weight 1
+            assert u["kind"] == "rmse" and den == [1.0] * runs and all(x > 0 for x in num)
+            k = int(n.split(".")[2][1:])
+            assert f[n] == pytest.approx(ser[n.replace(f".k{k}.", ".")][k - 1], rel=1e-12)
         elif n.endswith("rmse_p_all_m"):
             assert den == [K * n_agents] * runs
             per_step = np.asarray(ser[n.replace("rmse_p_all_m", "rmse_p_m")])
@@ -123,6 +129,29 @@ def test_first_method_over_the_others_on_the_same_runs(tiny):
     assert rows[0][:2] == ("s1", "pfbp")
     assert rows[0][2].startswith(f"{f['pfbp.s1.k1.rmse_p_m']:.3g} [")
     assert any("pfbp / other on the same runs" in line for line in te.summary_lines(tiny))
+
+
+def test_rmse_over_the_conditional_bound_is_paired_over_runs(tiny):
+    """``rmse_over_pcrlb_cond``: the RMSE over the conditional bound of the same runs, with
+    the interval of the paired bootstrap that resamples each run's errors and bound together
+    (recomputed here from the stored per-run values); so is SIR-BP / PF-BP time per step."""
+    from phyloc.evaluation.statistics import Paired, paired_interval, units_of
+
+    f, ser, seed = tiny["figures"], tiny["series"], tiny["meta"]["seed"]
+    for m in tiny["meta"]["methods"]:
+        for k in tiny["meta"]["report_steps"]:
+            n = f"{m}.s1.k{k}.rmse_over_pcrlb_cond"
+            a, b = units_of(ser, f"{m}.s1.k{k}.rmse_p_m"), units_of(ser, f"pcrlb_cond.s1.k{k}.p_m")
+            assert f[n] == pytest.approx(a.value / b.value, rel=1e-12)
+            assert (f[n + ".ci_low"], f[n + ".ci_high"]) == paired_interval(
+                Paired(a, b), seed=seed, name=n
+            )
+            assert f[n + ".ci_low"] <= f[n] * (1 + 1e-12) <= f[n + ".ci_high"] * (1 + 1e-12)
+            assert n + ".ratio" not in f
+    n = "sirbp_over_pfbp.s1.step_ratio"
+    a, b = units_of(ser, "sirbp.s1.step_s"), units_of(ser, "pfbp.s1.step_s")
+    assert f[n] == pytest.approx(a.value / b.value, rel=1e-12)
+    assert (f[n + ".ci_low"], f[n + ".ci_high"]) == paired_interval(Paired(a, b), seed=seed, name=n)
 
 
 def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):

@@ -62,10 +62,16 @@ class PCRLBResult:
         ``(J^{(k)})^{-1}`` of the joint state (``N = |C|·N_D``).
     bounds : dict of str -> [K] float64
         ``"p"`` [m], ``"v"`` [m/s], ``"a"`` [m/s²] (those the model has): RMSE bounds.
+    per_scenario : dict of str -> [n_scenarios, K] float64, or None
+        With ``average="bound"``: each scenario's own mean-square bound (its agents' bound
+        variances summed over the axes, averaged over the agents), keyed as ``bounds``;
+        ``bounds[b]`` is the square root of their mean over scenarios. None with
+        ``average="information"``, whose bound is not an average of per-scenario bounds.
     """
 
     cov: np.ndarray
     bounds: dict
+    per_scenario: dict | None = None
 
 
 def _inv_sym(A):
@@ -223,15 +229,23 @@ def pcrlb(
     F, Q = model.matrices()
     eye = np.eye(n_ag)
     J0, Fj, Qj = _inv_sym(block_diag(*P0)), np.kron(eye, F), np.kron(eye, Q)
+    names = "pva"[: model.order]
+
+    def mean_square(c):  # [K, N, N] -> per block [K]: variances summed, averaged over agents
+        diag = np.diagonal(c, axis1=-2, axis2=-1).reshape(K, n_ag, model.order, dim)
+        return {name: diag[:, :, b].sum(axis=(1, 2)) / n_ag for b, name in enumerate(names)}
+
+    per = None
     if average == "information":
         Jz = sum(information(sc) for sc in scenarios) / len(scenarios)
         cov = pcrlb_recursion(J0, Fj, Qj, Jz)
     else:
-        cov = sum(pcrlb_recursion(J0, Fj, Qj, information(sc)) for sc in scenarios)
+        cov, ms = 0.0, []
+        for sc in scenarios:
+            c = pcrlb_recursion(J0, Fj, Qj, information(sc))
+            cov = cov + c
+            ms.append(mean_square(c))
         cov /= len(scenarios)
-    diag = np.diagonal(cov, axis1=1, axis2=2).reshape(K, n_ag, model.order, dim)
-    bounds = {
-        name: np.sqrt(diag[:, :, b].sum(axis=(1, 2)) / n_ag)
-        for b, name in enumerate("pva"[: model.order])
-    }
-    return PCRLBResult(cov=cov, bounds=bounds)
+        per = {name: np.stack([m[name] for m in ms]) for name in names}
+    bounds = {name: np.sqrt(x) for name, x in mean_square(cov).items()}
+    return PCRLBResult(cov=cov, bounds=bounds, per_scenario=per)

@@ -22,7 +22,8 @@ resamples the same units for both (a paired bootstrap).
 :meth:`~phyloc.evaluation.experiment.Experiment.execute`) turns them into plain figures:
 ``<name>`` (the point value), ``<name>.ci_low`` and ``<name>.ci_high`` in ``figures``, and the
 per-unit values ``<name>.units`` (``{"kind", "num", "den"}``) in ``series``; a
-paired ratio is written as ``<name>.ratio`` and its interval. The bootstrap's stream is derived
+paired ratio is written as ``<name>.ratio`` (or under its own name, :attr:`Paired.suffix`) and its
+interval. The bootstrap's stream is derived
 from the run's seed and the figure's name, so the same results give the same intervals however
 many workers ran the tasks. With fewer than two units (or none that count), the interval is
 NaN: nothing can be said about its width.
@@ -201,10 +202,15 @@ class Quantile:
 
 @dataclass(frozen=True)
 class Paired:
-    """The ratio ``a / b`` of two figures pooled over the same units, in the same order."""
+    """The ratio ``a / b`` of two figures pooled over the same units, in the same order.
+
+    ``suffix`` is appended to the figure's name when it is written (:func:`resolve`):
+    ``".ratio"`` for a comparison of two methods, ``""`` for a figure that is a ratio by
+    definition (an RMSE over its bound)."""
 
     a: Pooled
     b: Pooled
+    suffix: str = ".ratio"
 
     def __post_init__(self):
         if self.a.n_units != self.b.n_units:
@@ -316,8 +322,8 @@ def resolve(figures: dict, series: dict, *, seed: int = 0) -> tuple[dict, dict]:
     """Replace the :class:`Pooled` and :class:`Paired` values of ``figures`` by numbers: the
     figure, its interval (``.ci_low``, ``.ci_high``) and (``Pooled``) its per-unit values in
     ``series`` (``<name>.units``: ``{"kind": ..., "num": [...], "den": [...]}``). A ``Paired``
-    value under ``<name>`` becomes ``<name>.ratio`` with its interval. Other entries are kept
-    as they are, in their order."""
+    value under ``<name>`` becomes ``<name><suffix>`` (``<name>.ratio`` unless the value says
+    otherwise) with its interval. Other entries are kept as they are, in their order."""
     out_f: dict = {}
     out_s = dict(series)
     for name, x in figures.items():
@@ -330,7 +336,7 @@ def resolve(figures: dict, series: dict, *, seed: int = 0) -> tuple[dict, dict]:
             out_f[name] = x.value
             out_f[name + ".ci_low"], out_f[name + ".ci_high"] = x.interval(seed=seed, name=name)
         elif isinstance(x, Paired):
-            key = name + ".ratio"
+            key = name + x.suffix
             lo, hi = paired_interval(x, seed=seed, name=key)
             out_f[key] = x.value
             out_f[key + ".ci_low"], out_f[key + ".ci_high"] = lo, hi

@@ -106,8 +106,13 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
 have ``<name>.ci_low`` / ``<name>.ci_high`` (bootstrap over runs) and their per-run values in
 the series ``<name>.units``; the fractions (``outage_<x>m``, ``sage.<s>.valid_fraction``) have
 Clopper–Pearson intervals; every ``…_vs_….ratio`` has the paired bootstrap's interval
-(``.ratio.ci_low`` / ``.ratio.ci_high``). The PCRLBs are computed from the same trajectories and
-carry none, nor do ``rmse_over_pcrlb*``, the timings and the memory figures.
+(``.ratio.ci_low`` / ``.ratio.ci_high``). The conditional bound ``pcrlb_cond.*`` averages the
+runs' own bounds: it has an interval over runs and per-run values (``.units``), and
+``rmse_over_pcrlb_cond`` has the paired bootstrap's interval over the runs the method ran (the
+errors and the bounds of the same trajectories resampled together). So do the mean time per
+step ``step_s`` / ``agent_s`` and ``sirbp_over_pfbp.<s>.step_ratio`` (paired over runs). The
+Bayesian ``pcrlb.*`` averages the information over runs, not per-run bounds: it and
+``rmse_over_pcrlb`` carry none, nor do ``pcrlb_cond_one_range.*`` and the memory figures.
 
 Series: ``k`` (1 … K); ``<m>.<s>.rmse_p_m`` / ``rmse_v_m_s`` / ``rmse_a_m_s2`` and
 ``pcrlb.<s>.p_m`` / ``v_m_s`` / ``a_m_s2`` (and ``pcrlb_cond.*``) per step;
@@ -396,6 +401,13 @@ def pooled_at(p: Pooled, point) -> Pooled:
     return p.at(point)
 
 
+def _bound_units(mean_square) -> Pooled:
+    """Per-run mean-square bounds ``[runs]`` as an RMSE-type figure over runs (one unit per
+    run, as the errors' units: each run's agents weigh alike)."""
+    ms = np.asarray(mean_square, dtype=np.float64)
+    return Pooled(ms, np.ones_like(ms), "rmse")
+
+
 def _comparisons(figures, parts, methods, tok, report_steps):
     """Paired ratios of the position RMSE (at the report steps and over the whole trajectory)
     over the same runs: the first method against every other (``<first>_vs_<m>``; a ratio
@@ -448,13 +460,18 @@ def _aggregate(keys, results, exp):
             min(np.isfinite(sc.z[:, :, sc.n_agents :]).sum(axis=2).min() for sc in scs)
         )
         bound = pcrlb(scs, P0).bounds
-        cond = pcrlb(scs, P0, average="bound").bounds
+        cond_all = pcrlb(scs, P0, average="bound")
+        cond, cond_runs = cond_all.bounds, cond_all.per_scenario  # per run: [runs, K]
         cond_one = pcrlb(scs, P0, average="bound", pairs="one").bounds
         for b in blocks:
-            for name, bb in (("pcrlb", bound), ("pcrlb_cond", cond)):
-                series[f"{name}.{tok}.{UNITS[b]}"] = bb[b]
-                for k in exp.report_steps:
-                    figures[f"{name}.{tok}.k{k}.{UNITS[b]}"] = float(bb[b][k - 1])
+            series[f"pcrlb.{tok}.{UNITS[b]}"] = bound[b]
+            series[f"pcrlb_cond.{tok}.{UNITS[b]}"] = cond[b]
+            for k in exp.report_steps:
+                figures[f"pcrlb.{tok}.k{k}.{UNITS[b]}"] = float(bound[b][k - 1])
+                # the conditional bound averages the runs' own bounds: an interval over runs
+                figures[f"pcrlb_cond.{tok}.k{k}.{UNITS[b]}"] = pooled_at(
+                    _bound_units(cond_runs[b][:, k - 1]), cond[b][k - 1]
+                )
             for k in exp.report_steps:
                 figures[f"pcrlb_cond_one_range.{tok}.k{k}.{UNITS[b]}"] = float(cond_one[b][k - 1])
         if exp.measurements == "sage":
@@ -479,7 +496,8 @@ def _aggregate(keys, results, exp):
             figures[f"sage.{tok}.sigma_m"] = pooled_at(Pooled.mean(sigma), np.mean(sigma))
         for m in exp.methods:
             base = f"{m}.{tok}"
-            m_parts = [p for p in parts if f"{m}|e_p" in p]  # experiment.method_runs
+            ran = [i for i, p in enumerate(parts) if f"{m}|e_p" in p]  # experiment.method_runs
+            m_parts = [parts[i] for i in ran]
             figures[f"{base}.runs"] = len(m_parts)
             m_bound, m_cond = bound, cond
             if len(m_parts) < len(parts):  # the bounds of the runs this method ran
@@ -495,10 +513,13 @@ def _aggregate(keys, results, exp):
                         Pooled.rmse([p[f"{m}|e_{b}"][k - 1] for p in m_parts]), rmse[k - 1]
                     )
             ep = np.concatenate([p[f"{m}|e_p"] for p in m_parts], axis=1)
-            for k in exp.report_steps:  # over bounds of the same trajectories: no interval
-                rmse_k = figures[f"{base}.k{k}.rmse_p_m"].value
-                figures[f"{base}.k{k}.rmse_over_pcrlb"] = float(rmse_k / m_bound["p"][k - 1])
-                figures[f"{base}.k{k}.rmse_over_pcrlb_cond"] = float(rmse_k / m_cond["p"][k - 1])
+            for k in exp.report_steps:
+                rmse_k = figures[f"{base}.k{k}.rmse_p_m"]
+                # the Bayesian bound averages information, not per-run bounds: no interval
+                figures[f"{base}.k{k}.rmse_over_pcrlb"] = float(rmse_k.value / m_bound["p"][k - 1])
+                # over the conditional bound of the same runs: the paired bootstrap over runs
+                m_cond_k = pooled_at(_bound_units(cond_runs["p"][ran, k - 1]), m_cond["p"][k - 1])
+                figures[f"{base}.k{k}.rmse_over_pcrlb_cond"] = Paired(rmse_k, m_cond_k, suffix="")
             figures[f"{base}.rmse_p_all_m"] = pooled_at(
                 Pooled.rmse([p[f"{m}|e_p"] for p in m_parts]), np.sqrt(np.mean(ep**2))
             )
@@ -524,9 +545,11 @@ def _aggregate(keys, results, exp):
                 figures[f"{base}.floats_per_link_iteration"] = floats
         _comparisons(figures, parts, exp.methods, tok, exp.report_steps)
         if "sirbp" in exp.methods and "pfbp" in exp.methods:
-            figures[f"sirbp_over_pfbp.{tok}.step_ratio"] = (
-                figures[f"sirbp.{tok}.step_s"].value / figures[f"pfbp.{tok}.step_s"].value
-            )
+            sir, pf = figures[f"sirbp.{tok}.step_s"], figures[f"pfbp.{tok}.step_s"]
+            if sir.n_units == pf.n_units:  # both ran every run: paired over runs
+                figures[f"sirbp_over_pfbp.{tok}.step_ratio"] = Paired(sir, pf, suffix="")
+            else:
+                figures[f"sirbp_over_pfbp.{tok}.step_ratio"] = sir.value / pf.value
     return figures, series
 
 
