@@ -57,15 +57,20 @@ n_iterations = 8
 SAMPLE_S = 0.05
 
 
-def peak_tree_rss(cmd: list[str], *, sample_s: float = SAMPLE_S) -> tuple[float, float]:
-    """Run ``cmd``; return (peak summed RSS of its process tree [B], wall time [s]).
+def peak_tree_rss(
+    cmd: list[str], *, sample_s: float = SAMPLE_S, preexec_fn=None
+) -> tuple[float, float]:
+    """Run ``cmd`` (``preexec_fn`` as :class:`subprocess.Popen`'s); return (peak summed RSS of
+    its process tree [B], wall time [s]).
 
     Raises ``RuntimeError`` with the command's stderr when it fails.
     """
     import psutil
 
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=preexec_fn
+    )
     root = psutil.Process(proc.pid)
     peak = 0
     while proc.poll() is None:

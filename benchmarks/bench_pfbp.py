@@ -22,6 +22,12 @@ steps of one run after a warm-up run (JIT compilation). Figures (names are the i
                                           r_max = 18 m; ``m`` in pfbp, edh, sirbp, spbp; SIR-BP
                                           with ``sirbp.n_particles``), Table II
 ``sirbp_over_pfbp.s2_r18.step_ratio``     SIR-BP time / PF-BP time per step in Scenario II
+``pfbp_over_edh.s2_r18.step_ratio``       PF-BP time / EDH time per step in Scenario II (Table II:
+                                          0.9 / 0.25 s = 3.6)
+``pfbp_numpy.s2_r18.step_s``              PF-BP with the NumPy flow twin in Scenario II [s]
+``pfbp_numpy_over_edh.s2_r18.step_ratio`` ... over EDH's time per step: Table II's order with the
+                                          flow written as plain array code, as the paper's
+                                          implementation may have had it (omitted with the twin)
 
 Everything runs with one BLAS thread (as the experiment runner does): the matrices are small, and
 OpenBLAS threads on a busy machine made a Scenario II step up to 10x slower. The trackers run
@@ -155,6 +161,13 @@ def _report_s2(quick: bool) -> dict[str, float]:
     fig["sirbp_over_pfbp.s2_r18.step_ratio"] = (
         fig["sirbp.s2_r18.step_s"] / fig["pfbp.s2_r18.step_s"]
     )
+    fig["pfbp_over_edh.s2_r18.step_ratio"] = fig["pfbp.s2_r18.step_s"] / fig["edh.s2_r18.step_s"]
+    flow = _numpy_flow()
+    if flow is not None:  # Table II's order with the flow as plain array code
+        fig["pfbp_numpy.s2_r18.step_s"] = _median_step(run_pfbp, meas, prior, opt, flow)[0]
+        fig["pfbp_numpy_over_edh.s2_r18.step_ratio"] = (
+            fig["pfbp_numpy.s2_r18.step_s"] / fig["edh.s2_r18.step_s"]
+        )
     return fig
 
 
@@ -209,6 +222,7 @@ def summarize(fig: dict) -> str:
         (label, fig[f"{m}.s2_r18.step_s"], fig.get(f"{m}.s2_r18.agent_s"))
         for m, label in (
             ("pfbp", "PF-BP"),
+            *((("pfbp_numpy", "PF-BP (NumPy flow)"),) if "pfbp_numpy.s2_r18.step_s" in fig else ()),
             ("edh", "EDH (joint)"),
             ("sirbp", f"SIR-BP ({int(fig['sirbp.n_particles'])} particles)"),
             ("spbp", "SP-BP"),
@@ -220,5 +234,7 @@ def summarize(fig: dict) -> str:
         f"{table}\n{table2}\n"
         f"PF-BP particles x lambda-steps per s: {fig['pfbp.particle_flow_steps_per_s']:.4g}; "
         f"flow kernel speed-up vs NumPy: {speedup:.3g}; "
-        f"SIR-BP / PF-BP per step: {fig['sirbp_over_pfbp.step_ratio']:.3g}"
+        f"SIR-BP / PF-BP per step: {fig['sirbp_over_pfbp.step_ratio']:.3g}; Scenario II "
+        f"PF-BP / EDH per step: {fig['pfbp_over_edh.s2_r18.step_ratio']:.3g} (NumPy flow: "
+        f"{fig.get('pfbp_numpy_over_edh.s2_r18.step_ratio', float('nan')):.3g}; Table II 3.6)"
     )

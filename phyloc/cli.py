@@ -2,8 +2,9 @@
 
 Commands:
 
-* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|analysis|memory|sionna|all]
-  [--quick] [--json PATH]``: run benchmarks; print cost per unit of work and ratios to references.
+* ``phyloc bench [phy|channels|ranging|dipnet|datasets|pfbp|nbp|control|analysis|memory|
+  memory_large|sionna|all] [--quick] [--json PATH]``: run benchmarks; print cost per unit of
+  work and ratios to references.
 * ``phyloc evaluate RECIPE|OUT.h5 [--fast] [--out DIR] [--json PATH]
   [--workers N | --scheduler ADDR] [--resume] [--plugin MODULE]``: run an experiment recipe,
   or localize on a dataset's waveforms (``--resume`` finishes an interrupted run); write
