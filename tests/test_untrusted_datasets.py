@@ -158,3 +158,59 @@ def test_an_import_source_with_an_external_link_is_refused(tmp_path, capsys):
     assert main(["import", str(src), "-o", str(tmp_path / "out.h5")]) == 2
     line = _one_line(capsys)
     assert "external link" in line and str(target) in line
+
+
+# -- absurd declared sizes: refused from the headers, nothing allocated ----------------------
+def _declare_huge(path, name, n_samples=2**36):
+    """Replace array ``name`` by one of the same leading shape but ``n_samples`` along its
+    last axis: chunked, nothing written (HDF5 keeps only the header; reading it would
+    allocate terabytes of fill values). Its attributes are kept."""
+    with h5py.File(path, "r+") as f:
+        old = f[name]
+        shape, dtype, attrs = old.shape, old.dtype, dict(old.attrs)
+        del f[name]
+        new = f.create_dataset(
+            name, shape=(*shape[:-1], n_samples), dtype=dtype, chunks=(*shape[:-1], 64)
+        )
+        for k, val in attrs.items():
+            new.attrs[k] = val
+
+
+def test_a_shard_declaring_terabytes_is_refused_before_it_is_read(dataset, tmp_path, capsys):
+    """The crafted case: the shard's ``received`` declares 2³⁶ samples per link (6 TiB at
+    this size), the checksums of the file and the master recomputed to match. ``verify`` used
+    to end in "internal error: MemoryError: Unable to allocate 6.00 TiB"; the header gives it
+    away now, and the reads through the master never reach it."""
+    from phyloc.datasets import schema as sc
+
+    shard = sorted((dataset.parent / "d.h5.shards").glob("shard-*.h5"))[0]
+    _declare_huge(shard, "received")
+    with h5py.File(dataset, "r+") as f:
+        f["shards/file_sha256"][0] = sc.sha256_file(shard).encode()
+        f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)
+    capsys.readouterr()
+    assert main(["info", str(dataset), "--verify"]) == 1
+    out = capsys.readouterr()
+    assert "Traceback" not in out.err and "internal error" not in out.err
+    assert "array received declares shape (1, 1, 6, 68719476736)" in out.out
+    assert "refused before reading" in out.out
+
+
+@pytest.mark.parametrize("where", ["received", "extra"])
+def test_a_master_declaring_more_than_the_memory_is_refused(dataset, capsys, where):
+    """A master whose ``received`` declares more per realization than this machine's memory,
+    or which holds an extra dataset of 2⁴⁰ elements (``verify`` reads the master's own
+    datasets whole to checksum them: it used to end in "internal error: MemoryError"):
+    refused in one line when it is opened, before its checksum is computed."""
+    with h5py.File(dataset, "r+") as f:
+        if where == "received":
+            del f["received"]  # the virtual dataset; an ordinary one declaring 2^40 samples
+            f.create_dataset("received", shape=(2, 1, 6, 2**40), dtype="c8", chunks=(1, 1, 6, 64))
+        else:
+            f.create_dataset("extra", shape=(2**40,), dtype="c8", chunks=(64,))
+    for argv in (["info", str(dataset)], ["info", str(dataset), "--verify"]):
+        capsys.readouterr()
+        assert main(argv) == 2
+        line = _one_line(capsys)
+        assert "more than this machine's" in line and "refusing it before reading" in line
+        assert ("GB per realization" if where == "received" else "master file's own") in line

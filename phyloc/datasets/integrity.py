@@ -26,6 +26,20 @@ from phyloc.datasets import schema as sc
 from phyloc.datasets.reader import Dataset, _master_read, open_dataset
 
 
+def _axis_sizes(ds: Dataset) -> dict:
+    """The axis sizes a shard's arrays may declare (``link`` an upper bound), from the
+    master's attributes (:func:`~phyloc.datasets.schema.check_shard`)."""
+    return {
+        "snapshot": ds.n_snapshots,
+        "node": ds.n_nodes,
+        "coordinate": ds.dim,
+        "link": ds.max_links,
+        "end": 2,
+        "subcarrier": ds.system.n_subcarriers,
+        "sample": ds.system.n_samples,
+    }
+
+
 def check_master(ds: Dataset) -> str | None:
     """What is wrong with an open dataset's master file itself, or None: an expected array,
     group or dimension scale missing, or content that differs from the master's own SHA-256
@@ -66,6 +80,7 @@ def verify_dataset(path) -> dict:
         arrays = [sc.spec_of(n) for n in ds.array_names]
         sh = ds.shards
         missing, corrupt, problems, ok, each = [], [], {}, 0, []
+        dims = _axis_sizes(ds)
         master = check_master(ds)
         if master:
             problems["master"] = master
@@ -87,6 +102,7 @@ def verify_dataset(path) -> dict:
                 fingerprint=fp,
                 arrays=arrays,
                 file_sha256=sh["file_sha256"][j],
+                dims={**dims, "path": int(sh["n_paths"][j])},
             )
             if rec is not None:
                 ok += 1

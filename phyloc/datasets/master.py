@@ -312,8 +312,11 @@ def scan_shards(plan: DatasetPlan, sdir: Path, known: dict) -> list:
     """
     remove_stale(sdir)
     records = []
+    net = plan.network
+    links = sc.max_possible_links(net.n_agents, net.n_anchors)
     for j in range(plan.dataset.n_shards):
         start, stop = plan.dataset.shard_range(j)
+        n_links = (stop - start) * net.motion.n_snapshots * links
         rec, kind, reason = sc.check_shard(
             sdir / sc.shard_name(j),
             index=j,
@@ -322,6 +325,7 @@ def scan_shards(plan: DatasetPlan, sdir: Path, known: dict) -> list:
             fingerprint=plan.fingerprint,
             arrays=plan.arrays,
             file_sha256=known.get(j),
+            dims=plan.dims(stop - start, links, n_links * sc.MAX_PATHS_PER_LINK),
         )
         if kind == "foreign":
             raise sc.DatasetMismatchError(

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import warnings
 from dataclasses import dataclass
 
@@ -149,11 +148,8 @@ def _check_sizes(network, system, dataset) -> None:
         )
     # a shard's waveforms in memory: complex128 spectra + complex64 samples per link
     shard = dataset.shard_size * network.motion.n_snapshots * links * system.n_samples * 24
-    try:
-        memory = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
-        return
-    if shard > memory:
+    memory = sc.physical_memory()
+    if memory and shard > memory:
         raise ValidationError(
             "dataset.shard_size",
             dataset.shard_size,

@@ -229,6 +229,52 @@ class Dataset:
             raise sc.DatasetError(
                 f"dataset {self.path}: {outside}; a dataset reads only its own files (refusing it)"
             )
+        self._check_declared_sizes()
+
+    def _check_declared_sizes(self) -> None:
+        """Refuse, from the headers, a master whose datasets declare more than reading them
+        can afford: one realization of the per-realization arrays, or the master's own
+        (non-virtual) datasets, which ``verify`` reads whole to checksum them, beyond this
+        machine's memory; or more propagation paths than its links can have
+        (:data:`~phyloc.datasets.schema.MAX_PATHS_PER_LINK` each). A dataset from elsewhere
+        must not make phyloc allocate terabytes."""
+        found: list = []
+        self.file.visititems(
+            lambda name, obj: found.append((name, obj)) if isinstance(obj, h5py.Dataset) else None
+        )
+        per_realization, n_paths, whole = 0, 0, 0
+        for name, d in found:
+            if d.shape is None:
+                continue
+            if not d.is_virtual:
+                whole += math.prod(d.shape) * d.dtype.itemsize
+            if name not in self.array_names:
+                continue
+            spec = sc.spec_of(name)
+            if len(d.shape) != len(spec.axes):
+                raise sc.DatasetError(
+                    f"dataset {self.path}: array {name} has shape {d.shape}, not the axes "
+                    f"{', '.join(spec.axes)}; it is not a phyloc dataset (refusing it)"
+                )
+            if spec.role == "path":
+                n_paths = max(n_paths, int(d.shape[0]))
+            elif d.shape[0]:
+                per_realization += math.prod(d.shape[1:]) * d.dtype.itemsize
+        memory = sc.physical_memory()
+        max_paths = self.n_realizations * self.n_snapshots * self.max_links * sc.MAX_PATHS_PER_LINK
+        what = ""
+        if memory and per_realization > memory:
+            what = f"{per_realization / 1e9:.3g} GB per realization"
+        elif memory and whole > memory:
+            what = f"{whole / 1e9:.3g} GB in the master file's own datasets"
+        elif n_paths > max_paths:
+            what = f"{n_paths} propagation paths, more than {sc.MAX_PATHS_PER_LINK} per link"
+        if what:
+            if "GB" in what:
+                what += f", more than this machine's {memory / 1e9:.3g} GB of memory"
+            raise sc.DatasetError(
+                f"dataset {self.path}: its arrays declare {what}; refusing it before reading"
+            )
 
     def _virtual_datasets(self):
         out = []

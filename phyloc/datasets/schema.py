@@ -479,8 +479,10 @@ def check_shard(
     fingerprint: str,
     arrays,
     file_sha256: str | None = None,
+    dims: dict | None = None,
 ):
-    """Check a shard file completely: file checksum, format, identity and every array's SHA-256.
+    """Check a shard file completely: file checksum, format, identity, every array's declared
+    shape and every array's SHA-256.
 
     Parameters
     ----------
@@ -493,6 +495,11 @@ def check_shard(
         The arrays the shard must hold.
     file_sha256 : str, optional
         The file checksum recorded by the master (checked when given).
+    dims : dict, optional
+        The dataset's axis sizes (:meth:`ArraySpec.shape`; ``realization`` is taken from
+        ``start``/``stop``): ``link`` and ``path`` are upper bounds, every other axis must
+        match. Checked from the arrays' headers before any data is read, so a shard that
+        declares an absurd shape (terabytes of fill values) is refused instead of read.
 
     Returns
     -------
@@ -538,8 +545,15 @@ def check_shard(
                 if a.name not in f:
                     return None, "corrupt", f"array {a.name} is missing"
                 d = f[a.name]
+                if not isinstance(d, h5py.Dataset) or d.shape is None or not d.shape:
+                    return None, "corrupt", f"{a.name} is not an array"
                 if a.role != "path" and d.shape[0] != stop - start:
                     return None, "corrupt", f"array {a.name} has shape {d.shape}"
+                bad = _shape_outside(a, d.shape, dims, stop - start)
+                if bad:
+                    return None, "corrupt", bad
+            for a in arrays:  # every header sound: now the data
+                d = f[a.name]
                 stored = _text(d.attrs.get("sha256", ""))
                 if sha256_h5(d) != stored:
                     return None, "corrupt", f"SHA-256 of {a.name} does not match its data"
@@ -550,6 +564,40 @@ def check_shard(
         raise
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
         return None, "corrupt", f"unreadable ({type(exc).__name__}: {exc})"
+
+
+def physical_memory() -> int:
+    """This machine's physical memory [B] (0 where it cannot be read)."""
+    import os
+
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not POSIX
+        return 0
+
+
+#: Upper bound on the propagation paths of one link, for a shard whose path count is not
+#: known in advance (a resume): far above any channel model's (tens to a few hundred).
+MAX_PATHS_PER_LINK = 10_000
+
+
+def _shape_outside(a: ArraySpec, shape: tuple, dims: dict | None, n_rows: int) -> str:
+    """Why ``shape`` (an array's declared shape in a shard of ``n_rows`` realizations) is not
+    one the dataset's axis sizes ``dims`` allow (``link`` and ``path`` as upper bounds), or
+    ""."""
+    if dims is None:
+        return ""
+    want = tuple(n_rows if ax == "realization" else int(dims[ax]) for ax in a.axes)
+    ok = len(shape) == len(want) and all(
+        (g <= w) if ax in ("link", "path") else (g == w)
+        for g, w, ax in zip(shape, want, a.axes, strict=True)
+    )
+    if ok:
+        return ""
+    return (
+        f"array {a.name} declares shape {tuple(shape)}, outside this dataset's "
+        f"{want} ({', '.join(a.axes)}; link and path counts at most): refused before reading"
+    )
 
 
 def shard_record(f, path, arrays) -> dict:
