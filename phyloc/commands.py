@@ -502,6 +502,7 @@ def cmd_channel_compare(args) -> int:
     from pathlib import Path
 
     from phyloc.channels import sionna_compare as sc
+    from phyloc.channels import sionna_report as sr
 
     names = sc.check_arguments(args.scenarios, args.links, args.carrier_frequency_hz)
     label = "all" if args.scenarios == ["all"] else "_".join(names)
@@ -517,16 +518,16 @@ def cmd_channel_compare(args) -> int:
             carrier_frequency_hz=args.carrier_frequency_hz,
             seed=args.seed,
         )
-        print(sc.format_comparison(res), end="\n\n", flush=True)
+        print(sr.format_comparison(res), end="\n\n", flush=True)
         results.append(res)
-    counts = sc.verdict_counts(results)
+    counts = sr.verdict_counts(results)
     print(
         f"{len(names)} scenario(s): {counts['agrees']} statistics agree, {counts['DIFFERS']} "
         f"differ, {counts['—']} without a test (level {sc.ALPHA:g} per statistic); "
         f"{time.perf_counter() - t0:.0f} s"
     )
     png.parent.mkdir(parents=True, exist_ok=True)
-    sc.plot_comparison(results, png)
+    sr.plot_comparison(results, png)
     print(f"wrote {png}")
     meta = {
         "command": "channel-compare",
@@ -536,7 +537,7 @@ def cmd_channel_compare(args) -> int:
         "seed": args.seed,
         "seconds": time.perf_counter() - t0,
     }
-    figures, meta, series = sc.to_json(results, meta)
+    figures, meta, series = sr.to_json(results, meta)
     _write_json(args, figures, meta, series)
     return 0
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from phyloc.channels import sionna_compare as sc
+from phyloc.channels import sionna_report as sr
 from phyloc.cli import main
 
 STORED = Path(__file__).resolve().parents[1] / "docs" / "results" / "sionna_tr38901"
@@ -73,7 +74,7 @@ def test_paths_at_one_delay_add_coherently_or_in_power():
 def test_cluster_count_is_recovered_from_the_path_count(clusters):
     """``c`` clusters, the two strongest split into three paths each: ``c + 2·min(c, 2)``."""
     paths = clusters + 2 * min(clusters, 2)
-    assert sc._cluster_counts(np.array([paths]), 2, 2).tolist() == [clusters]
+    assert sc.cluster_counts(np.array([paths]), 2, 2).tolist() == [clusters]
 
 
 def test_without_sionna_the_command_says_how_to_install_it(monkeypatch, tmp_path, capsys):
@@ -112,15 +113,15 @@ def test_outputs_and_arguments_are_checked_before_any_work(monkeypatch, tmp_path
 def test_the_stored_comparison_prints_and_draws_from_its_json(tmp_path):
     doc = json.loads((STORED / "results.json").read_text())
     assert doc["meta"]["command"] == "channel-compare"
-    results = sc.results_from_json(doc)
+    results = sr.results_from_json(doc)
     names = {r["scenario"] for r in results}
     assert {"tr38901_umi", "tr38901_uma", "tr38901_rma"} <= names
     for res in results:
-        text = sc.format_comparison(res)
+        text = sr.format_comparison(res)
         assert res["scenario"] in text and "verdict" in text
-    out = sc.plot_comparison(results, tmp_path / "c.png")
+    out = sr.plot_comparison(results, tmp_path / "c.png")
     assert out.stat().st_size > 10000
-    counts = sc.verdict_counts(results)
+    counts = sr.verdict_counts(results)
     assert counts == doc["meta"]["verdicts"]
 
 
