@@ -10,6 +10,7 @@ import pytest
 from phyloc.cli import main
 from phyloc.config import load_recipe
 from phyloc.errors import ValidationError
+from phyloc.evaluation import static_aggregation as sa
 from phyloc.evaluation import static_experiment as se
 from phyloc.evaluation import static_figures
 from phyloc.evaluation.experiment import experiment_from_dict
@@ -164,18 +165,18 @@ def test_convergence_and_settling_from_curve():
     curve = [10.0, 5.0, 2.0, 1.05, 1.0, 1.02]
     # paper's rule: the first small successive change (1.05 -> 1.0: 4.8 % <= 5 %) means
     # converged after iteration 4
-    assert se.convergence_from_curve(curve, 0.05, 0.01) == 4
-    assert se.convergence_from_curve(curve, 0.01, 0.001) == 6  # every change > 1 %
-    assert se.convergence_from_curve(curve, 0.6, 0.0) == 1  # 10 -> 5 is within 60 %
-    assert se.convergence_from_curve([3.0, 3.0], 0.05, 0.01) == 1
+    assert sa.convergence_from_curve(curve, 0.05, 0.01) == 4
+    assert sa.convergence_from_curve(curve, 0.01, 0.001) == 6  # every change > 1 %
+    assert sa.convergence_from_curve(curve, 0.6, 0.0) == 1  # 10 -> 5 is within 60 %
+    assert sa.convergence_from_curve([3.0, 3.0], 0.05, 0.01) == 1
     # settling: stays within the band around the final value from then on
-    assert se.settling_from_curve(curve, 0.05, 0.01) == 4  # |1.05 - 1.02| <= 0.051
-    assert se.settling_from_curve(curve, 0.01, 0.001) == 6  # |1.0 - 1.02| > 0.0102
-    assert se.settling_from_curve([3.0, 3.0], 0.05, 0.01) == 1
+    assert sa.settling_from_curve(curve, 0.05, 0.01) == 4  # |1.05 - 1.02| <= 0.051
+    assert sa.settling_from_curve(curve, 0.01, 0.001) == 6  # |1.0 - 1.02| > 0.0102
+    assert sa.settling_from_curve([3.0, 3.0], 0.05, 0.01) == 1
     # a late excursion resets settling but not the paper's rule
     late = [5.0, 1.0, 1.0, 3.0, 1.0]
-    assert se.settling_from_curve(late, 0.05, 0.01) == 5
-    assert se.convergence_from_curve(late, 0.05, 0.01) == 2
+    assert sa.settling_from_curve(late, 0.05, 0.01) == 5
+    assert sa.convergence_from_curve(late, 0.05, 0.01) == 2
 
 
 def test_ellipse_region_is_uniform():
@@ -405,7 +406,7 @@ def test_pooled_point_values_are_those_of_all_values_at_once():
         outage_thresholds_m=(1.0, 2.0),
     )
     res = _fake_static(exp, 3)
-    f, _ = se._aggregate(res, exp)
+    f, _ = sa.aggregate(res, exp)
     for m in exp.methods:
         final = np.concatenate([r[f"{m}|err"][-1] for r in res])
         assert f[f"{m}.mean_error_m"].value == final.mean()
@@ -533,7 +534,7 @@ def test_pbp_sweep_figures_are_pbp_over_the_sweep_topologies(tiny3):
                 assert key not in f
             else:
                 assert f[key] == f[f"poa_nbp.ns{ns}.{q}"] / f[f"pbp.sweep.{q}"], key
-    assert tiny3["series"]["pbp.sweep.outage"].shape == se.OUTAGE_GRID_M.shape
+    assert tiny3["series"]["pbp.sweep.outage"].shape == sa.OUTAGE_GRID_M.shape
 
 
 def test_convergence_is_counted_per_topology():
@@ -558,7 +559,7 @@ def test_convergence_is_counted_per_topology():
         for m in exp.methods:
             r[f"{m}|err"] = np.repeat(np.array(c)[:, None], exp.n_agents, axis=1)
             r[f"{m}|time"], r[f"{m}|t_support"] = t, u
-    f, _ = se._aggregate(res, exp)
+    f, _ = sa.aggregate(res, exp)
     for m in exp.methods:
         np.testing.assert_array_equal(f[f"{m}.convergence_iteration"].num, [3.0, 2.0, 1.0])
         assert f[f"{m}.convergence_iteration"].value == 2.0
