@@ -6,7 +6,9 @@
   compiles only the variant it uses: lowering a parallel loop costs about 3× compiling the
   same loop serially, and on one thread it buys nothing;
 * :func:`jit_seconds`: the time this process has spent compiling kernels or loading them from
-  the cache, so that measured run times can leave it out.
+  the cache, so that measured run times can leave it out;
+* :func:`kernel_cache_empty`: whether no kernel of phyloc is in Numba's on-disk cache yet (the
+  first run after an install compiles them, which a progress bar alone does not say).
 
 References
 ----------
@@ -230,3 +232,16 @@ def jit_seconds() -> float:
     (summed over threads). The difference of two readings is the JIT time between them, which
     a timed section subtracts from its wall time to report the cost of the work alone."""
     return _CLOCK.total
+
+
+def kernel_cache_empty() -> bool:
+    """True when Numba's on-disk cache holds no kernel of phyloc yet: no index file (``.nbi``)
+    under ``NUMBA_CACHE_DIR`` when it is set, else in the package's ``__pycache__`` folders.
+    Then the first run compiles every kernel it calls (about a minute on 2 cores)."""
+    from pathlib import Path
+
+    root = Path(numba.config.CACHE_DIR) if numba.config.CACHE_DIR else Path(__file__).parent
+    try:
+        return not any(root.rglob("*.nbi"))
+    except OSError:
+        return False

@@ -42,6 +42,7 @@ import json
 import os
 import pickle
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -125,6 +126,30 @@ def _quiet_progress() -> bool:
     return bool(os.environ.get("PHYLOC_NO_PROGRESS"))
 
 
+def _stderr_is_terminal() -> bool:
+    return bool(getattr(sys.stderr, "isatty", lambda: False)())
+
+
+COMPILING = (
+    "phyloc: compiling its kernels (once after an install; later runs load them from the "
+    "cache), about a minute before the progress moves"
+)
+_announced = False
+
+
+def announce_compilation() -> None:
+    """Print :data:`COMPILING` once per process to a terminal when Numba's cache holds no
+    kernel of phyloc yet (:func:`~phyloc._jit.kernel_cache_empty`): on a first run the progress
+    bar otherwise sits at 0 for a minute without a word. Not to a pipe or a file, whose reader
+    (a script, a test) expects phyloc's output only."""
+    global _announced
+    from phyloc._jit import kernel_cache_empty
+
+    if not _announced and _stderr_is_terminal() and kernel_cache_empty():
+        _announced = True
+        print(COMPILING, file=sys.stderr, flush=True)
+
+
 def run_tasks(
     fn,
     payloads,
@@ -153,6 +178,8 @@ def run_tasks(
     payloads = list(payloads)
     seeds = task_seeds(seed, len(payloads))
     show = progress and not _quiet_progress()
+    if show and payloads:
+        announce_compilation()
     serial = scheduler is None and (
         workers is None or v.integer("workers", workers, minimum=1) == 1
     )

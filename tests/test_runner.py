@@ -215,3 +215,38 @@ def test_a_task_that_kills_every_worker_it_runs_on_is_one_actionable_error():
     msg = str(info.value)
     assert isinstance(info.value, PhylocError) and "\n" not in msg
     assert "task 3 of 4" in msg and "--workers 1" in msg and "--resume" in msg
+
+
+def test_a_first_run_says_that_it_compiles(tmp_path, monkeypatch, capsys):
+    """With Numba's cache empty of phyloc's kernels, a run that shows progress on a terminal
+    says once that it compiles them (its bar would sit at 0 for a minute without a word); with
+    the cache filled, without progress, or to a pipe, it says nothing."""
+    import numba
+
+    from phyloc import _jit
+    from phyloc import parallel as par
+
+    monkeypatch.delenv("PHYLOC_NO_PROGRESS", raising=False)
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(par, "_announced", False)
+    monkeypatch.setattr(par, "_stderr_is_terminal", lambda: True)  # capsys is no terminal
+    assert _jit.kernel_cache_empty()
+    par.run_tasks(_square, [1, 2], seed=1, progress=False)
+    assert par.COMPILING not in capsys.readouterr().err
+    par.run_tasks(_square, [1, 2], seed=1)
+    par.run_tasks(_square, [1, 2], seed=1)
+    assert capsys.readouterr().err.count(par.COMPILING) == 1  # once per process
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "k.synthesis-12.py311.nbi").write_bytes(b"")
+    assert not _jit.kernel_cache_empty()
+    monkeypatch.setattr(par, "_announced", False)
+    par.run_tasks(_square, [1, 2], seed=1)
+    assert par.COMPILING not in capsys.readouterr().err
+    monkeypatch.setattr(par, "_stderr_is_terminal", lambda: False)
+    (tmp_path / "sub" / "k.synthesis-12.py311.nbi").unlink()
+    par.run_tasks(_square, [1, 2], seed=1)
+    assert par.COMPILING not in capsys.readouterr().err
+
+
+def _square(x, seed_seq):
+    return x * x
