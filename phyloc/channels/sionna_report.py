@@ -1,6 +1,13 @@
 """Tables, JSON and figures of :func:`phyloc.channels.sionna_compare.compare`'s results
 (``phyloc channel-compare``): one table per scenario and LOS state, the verdict counts, the
-``results.json`` form and back, and the CDF figure."""
+``results.json`` form and back, and the CDF figure.
+
+References
+----------
+3GPP TR 38.901, "Study on channel model for frequencies from 0.5 to 100 GHz," Sec. 7.4-7.5
+and 7.7.2-7.7.3; the tables as in V16.1. NVIDIA Sionna 2.2 (GitHub NVlabs/sionna),
+``sionna.phy.channel.tr38901``.
+"""
 
 from __future__ import annotations
 

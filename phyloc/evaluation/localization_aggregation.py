@@ -3,7 +3,14 @@
 its figures and series: framework and position errors with their intervals, error CDFs and
 their 50/80/90 % points, outliers, observability, link biases, belief calibration, times and
 their fitted cost exponents, and the paired comparisons. The figure names are documented in
-:mod:`phyloc.evaluation.localization_experiment`."""
+:mod:`phyloc.evaluation.localization_experiment`.
+
+References
+----------
+DiPNet: S. Zhang, E. Staudinger, T. Jost, W. Wang, C. Gentner, A. Dammann, H. Wymeersch and
+P. A. Hoeher, "Distributed direct localization suitable for dense networks," IEEE Trans.
+Aerospace and Electronic Systems 56(2), pp. 1209–1227, 2020.
+"""
 
 from __future__ import annotations
 

@@ -2,7 +2,13 @@
 (:mod:`phyloc.evaluation.static_experiment`, POA-NBP Figs. 9–12, Table I) into its figures and
 series: errors and outage per iteration, polygon areas, the convergence rule of the paper's
 footnote 5, overhead, times, the sample sweep and the paired comparisons. The figure names
-are documented in :mod:`phyloc.evaluation.static_experiment`."""
+are documented in :mod:`phyloc.evaluation.static_experiment`.
+
+References
+----------
+POA-NBP: R. Mendrzik and G. Bauch, "Position-constrained stochastic inference for cooperative
+indoor localization."
+"""
 
 from __future__ import annotations
 
