@@ -97,6 +97,9 @@ def method_plan(
         Require every shared key to be an option of some method of ``labels`` (False where the
         caller checks them itself, e.g. against the family's common options).
     """
+    for label in labels:
+        if not isinstance(label, str) or not label:
+            raise ValidationError(labels_key, label, "method names (non-empty strings)")
     _, shared, tables = split_localization(localization, reserved)
     known = REGISTRY.family(family)
     experiment_values = experiment_values or {}
