@@ -63,7 +63,6 @@ def _sub(base, old, new):
 # (name, recipe text, what the one line must name) — evaluated with `phyloc evaluate`
 EVALUATE_RECIPES = [
     ("unknown-method", _sub(LOCALIZATION, '["dipnet", "corr"]', '["foo"]'), "foo"),
-    # a fuzzer find: a number as a method name reached difflib's close-match search
     ("numeric-method-name", _sub(LOCALIZATION, '["dipnet", "corr"]', "[0]"), "methods"),
     ("empty-method-list", _sub(LOCALIZATION, '["dipnet", "corr"]', "[]"), "methods"),
     ("one-agent-network", _sub(LOCALIZATION, "agents = [4]", "agents = [1]"), "agents"),

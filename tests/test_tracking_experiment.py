@@ -548,3 +548,17 @@ def test_anchor_figures_count_the_stored_runs(tiny):
     assert 0.0 <= f["s1.anchor_localizable_fraction"] <= 1.0
     if example.max() < 4:
         assert f["s1.anchor_localizable_fraction"] == 0.0
+
+
+def test_a_number_as_a_method_name_is_a_one_line_error(tmp_path, capsys):
+    """A fuzzer find: ``methods = [0]`` in a tracking recipe reached difflib's close-match
+    search and ended in "internal error: TypeError: object of type 'int' has no len()"."""
+    from phyloc.cli import main
+
+    recipe = tmp_path / "r.toml"
+    recipe.write_text(TINY.replace('methods = ["pfbp", "sirbp", "spbp", "edh"]', "methods = [0]"))
+    assert main(["evaluate", str(recipe), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.splitlines() == [
+        "phyloc: error: experiment.methods = 0 is not allowed: method names (non-empty strings)"
+    ]

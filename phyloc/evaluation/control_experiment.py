@@ -72,7 +72,7 @@ from phyloc.control.loop import (
 from phyloc.control.policies import POLICIES, PolicySpec
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment, experiment_from_dict
-from phyloc.evaluation.methods import method_plan
+from phyloc.evaluation.methods import check_labels, method_plan
 from phyloc.evaluation.statistics import Paired, Pooled
 from phyloc.reporting import grouped_bars, new_figure, save_figure, with_interval
 
@@ -124,7 +124,7 @@ class ControlExperimentSpec:
         v.integer("experiment.trials", self.trials, minimum=1)
         if not isinstance(self.variants, dict):
             raise ValidationError("experiment.variants", self.variants, "a table of labels")
-        pols = tuple(self.policies)
+        pols = check_labels(self.policies, "experiment.policies")
         if not pols:
             raise ValidationError("experiment.policies", [], "at least one policy")
         for p in pols:

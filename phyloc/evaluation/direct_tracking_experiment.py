@@ -70,6 +70,7 @@ from phyloc.datasets.simulate import check_heights, simulate_realization
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
 from phyloc.evaluation.front_end import localize_realization
+from phyloc.evaluation.methods import check_labels
 from phyloc.evaluation.metrics import rigid_align
 from phyloc.evaluation.sections import LocalizationSpec, RangingSpec
 from phyloc.evaluation.statistics import Paired, Pooled
@@ -144,7 +145,7 @@ class DirectTrackingExperimentSpec:
                     f"experiment.runs.{name}", run, "a table with a network table"
                 )
             check_keys(run, ["network"], f"experiment.runs.{name}")
-        methods = tuple(self.methods)
+        methods = check_labels(self.methods)
         if not methods:
             raise ValidationError("experiment.methods", [], "at least one method")
         object.__setattr__(self, "methods", methods)

@@ -56,6 +56,17 @@ def _table(x) -> bool:
     return isinstance(x, dict)
 
 
+def check_labels(labels, key: str = "experiment.methods") -> tuple:
+    """``labels`` as a tuple, each a non-empty string (a one-line error naming ``key``)."""
+    if isinstance(labels, str) or not hasattr(labels, "__iter__"):
+        raise ValidationError(key, labels, "a list of method names")
+    labels = tuple(labels)
+    for label in labels:
+        if not isinstance(label, str) or not label:
+            raise ValidationError(key, label, "method names (non-empty strings)")
+    return labels
+
+
 def method_plan(
     localization: dict,
     labels,
@@ -97,9 +108,7 @@ def method_plan(
         Require every shared key to be an option of some method of ``labels`` (False where the
         caller checks them itself, e.g. against the family's common options).
     """
-    for label in labels:
-        if not isinstance(label, str) or not label:
-            raise ValidationError(labels_key, label, "method names (non-empty strings)")
+    check_labels(labels, labels_key)
     _, shared, tables = split_localization(localization, reserved)
     known = REGISTRY.family(family)
     experiment_values = experiment_values or {}

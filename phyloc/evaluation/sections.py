@@ -27,7 +27,7 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc._validate import check_keys
 from phyloc.errors import ValidationError
-from phyloc.evaluation.methods import method_plan
+from phyloc.evaluation.methods import check_labels, method_plan
 from phyloc.localization import DirectOptions
 from phyloc.localization.initialization import PAIR_COMBINE, SOLVERS
 from phyloc.network import NetworkSpec
@@ -80,7 +80,7 @@ class RangingSpec:
     options: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        methods = tuple(self.methods)
+        methods = check_labels(self.methods, "ranging.methods")
         if not methods:
             raise ValidationError("ranging.methods", [], f"at least one of {RANGING_METHODS}")
         for m in methods:

@@ -13,16 +13,12 @@ indoor localization."
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from phyloc.evaluation.static_figures import reference_method, threshold_name
 from phyloc.evaluation.statistics import Paired, Pooled
 from phyloc.localization import METHODS as REGISTRY
-
-if TYPE_CHECKING:
-    from phyloc.evaluation.static_experiment import StaticExperimentSpec
 
 #: Error thresholds [m] of the stored outage curves.
 OUTAGE_GRID_M = np.logspace(-2, 1.7, 149)
@@ -71,7 +67,7 @@ def settling_from_curve(curve, rel: float, abs_m: float) -> int:
     return int(outside[-1]) + 2 if outside.size else 1
 
 
-def aggregate(results, exp: StaticExperimentSpec, names=None):
+def aggregate(results, exp, names=None):
     """Pool the per-topology outputs: a figure pooled over topologies is a
     :class:`~phyloc.evaluation.statistics.Pooled` value (its interval resamples topologies;
     :func:`_comparisons` adds the paired ratios), so are the convergence iteration and the wall
@@ -201,7 +197,7 @@ def aggregate(results, exp: StaticExperimentSpec, names=None):
 SWEEP_REFERENCES = ("pbp",)
 
 
-def _sweep_references(figures, series, results, exp: StaticExperimentSpec) -> None:
+def _sweep_references(figures, series, results, exp) -> None:
     """The figures of every method of :data:`SWEEP_REFERENCES` that runs, restricted to the
     topologies of the sample sweep (the first ``exp.sweep_topologies``; none when the sweep
     does not run): ``<m>.sweep.topologies``, ``<m>.sweep.mean_error_m``,
@@ -226,7 +222,7 @@ def _sweep_references(figures, series, results, exp: StaticExperimentSpec) -> No
 COMPARED = ("mean_error_m", "rmse_m")
 
 
-def _comparisons(figures, exp: StaticExperimentSpec) -> None:
+def _comparisons(figures, exp) -> None:
     """Paired ratios over the same topologies (every method runs on the same ranges):
     :func:`~phyloc.evaluation.static_figures.reference_method` ``a`` against every other
     method ``m``, ``<a>_vs_<m>.mean_error_m``, ``.rmse_m`` and ``.outage_<x>m``; in the sample

@@ -202,6 +202,7 @@ import numpy as np
 from phyloc import _validate as v
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
+from phyloc.evaluation.methods import check_labels
 from phyloc.evaluation.methods import method_plan as plan_methods
 from phyloc.evaluation.static_aggregation import (
     aggregate,
@@ -336,7 +337,7 @@ class StaticExperimentSpec:
             raise ValidationError(s + "error", self.error, f"one of {', '.join(ERRORS)}")
         ne = tuple(v.integer(s + "n_edges", x, minimum=3) for x in self.n_edges)
         object.__setattr__(self, "n_edges", ne)
-        methods = tuple(self.methods)
+        methods = check_labels(self.methods)
         static = REGISTRY.family("static")
         if not methods:
             raise ValidationError(s + "methods", [], f"at least one of {', '.join(static)}")

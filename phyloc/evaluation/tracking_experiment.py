@@ -151,6 +151,7 @@ from phyloc.analysis.pcrlb import pcrlb
 from phyloc.channels import ChannelSpec
 from phyloc.errors import ValidationError
 from phyloc.evaluation.experiment import Experiment
+from phyloc.evaluation.methods import check_labels
 from phyloc.evaluation.methods import method_plan as plan_methods
 from phyloc.evaluation.range_scenarios import anchor_localizable, flow_example
 from phyloc.evaluation.sections import RangingSpec, scenario_specs
@@ -279,7 +280,7 @@ class TrackingExperimentSpec:
         object.__setattr__(self, "scenarios", scen)
         v.integer("experiment.runs", self.runs, minimum=1)
         K = v.integer("experiment.n_steps", self.n_steps, minimum=1)
-        methods = tuple(self.methods)
+        methods = check_labels(self.methods)
         known = METHODS.family(FAMILY)
         if not methods:
             raise ValidationError("experiment.methods", [], f"at least one of {', '.join(known)}")
