@@ -32,36 +32,21 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .bench_memory import RECIPE as BASE_RECIPE
 from .bench_memory import peak_tree_rss
 
-RECIPE = """
-kind = "dataset"
-name = "bench_memory_large"
-seed = 5
-
-[system]
-n_subcarriers = 32769
-subcarrier_spacing_hz = 30.0e3
-
-[network]
-n_agents = 12
-region_m = [100.0, 100.0]
-
-[channel]
-scenario = "winner2_c2"
-
-[dataset]
-realizations = {realizations}
-shard_size = 1
-
-[experiment]
-methods = ["corr"]
-inits = ["truth_free"]
-
-[localization]
-n_particles = 200
-n_iterations = 3
-"""
+#: :data:`bench_memory.RECIPE` with more agents, subcarriers and a cheaper localization: the
+#: data is large, the work per realization small.
+RECIPE = (
+    BASE_RECIPE.replace('name = "bench_memory"', 'name = "bench_memory_large"')
+    .replace(
+        "n_subcarriers = 2569\nsubcarrier_spacing_hz = 14.65e3",
+        "n_subcarriers = 32769\nsubcarrier_spacing_hz = 30.0e3",
+    )
+    .replace("n_agents = 8", "n_agents = 12")
+    .replace('methods = ["dipnet", "corr"]', 'methods = ["corr"]')
+    .replace("n_particles = 500\nn_iterations = 8", "n_particles = 200\nn_iterations = 3")
+)
 #: The memory cgroup's limit [10⁹ B].
 LIMIT_GB = 2.0
 CGROUP_V1 = Path("/sys/fs/cgroup/memory")

@@ -502,9 +502,9 @@ def _aggregate(keys, results, exp):
             figures[f"{base}.runs"] = len(m_parts)
             m_bound, m_cond = bound, cond
             if len(m_parts) < len(parts):  # the bounds of the runs this method ran
-                m_scs = [p["scenario"] for p in m_parts]
-                m_bound = pcrlb(m_scs, P0).bounds
-                m_cond = pcrlb(m_scs, P0, average="bound").bounds
+                m_bound = pcrlb([p["scenario"] for p in m_parts], P0).bounds
+                # the conditional bound averages per-run bounds: those of its runs, kept above
+                m_cond = {b: np.sqrt(cond_runs[b][ran].mean(axis=0)) for b in blocks}
             for b in blocks:
                 e = np.concatenate([p[f"{m}|e_{b}"] for p in m_parts], axis=1)  # [K, runs·agents]
                 rmse = np.sqrt(np.mean(e**2, axis=1))
