@@ -24,7 +24,10 @@ interface; times are the best of several calls, after a JIT warm-up)::
     control.approx.exponent_in_T              d log t / d log T, T = 1 … 8 (theory 1 in the
                                               number of cost evaluations, O(M₁|U|T))
     control.approx.exponent_in_M1             d log t / d log M₁, M₁ = 1, 2, 4 (theory 1)
-    control.level.kernel_s                    one level of 26³ nodes, Numba kernel [s]
+    control.level.kernel_s                    one level of 26³ nodes, Numba kernels (prediction
+                                              per node, covariances written) [s]
+    control.level.last_s                      the same level as a search's last: 26² parents
+                                              predicted once for their 26 children, costs alone [s]
     control.level.numpy_s                     the same, NumPy twin (tests/naive_control.py)
     control.level.speedup_vs_numpy            twin time / kernel time
 
@@ -45,7 +48,6 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from phyloc.control import ControlProblem, ControlScenario, control_set, search
-from phyloc.control._kernels import level_kernel
 from phyloc.control.fim import range_information
 from phyloc.reporting import format_table
 
@@ -121,21 +123,25 @@ def report(quick: bool = False) -> dict[str, float]:
 
 
 def _level(quick: bool) -> dict[str, float]:
-    """One level of 26³ nodes: the Numba kernel against its NumPy twin."""
+    """One level of 26³ nodes: the Numba kernels against their NumPy twin, and the same level
+    as the last of a search."""
     p = problem()
     rng = np.random.default_rng(1)
     N = 26**3
     covs = np.repeat(p.cov[None], N, axis=0)
     pos = p.mobile[None] + rng.uniform(-6, 6, (N, 1, 3))
-    means = p.predicted_means(1)[0]
-    sinfo = range_information(means, p.static, p.sigma_r)
-    out = np.empty_like(covs)
-    cost = np.empty(N)
+    means = p.predicted_means(1)[None, 0]
+    sinfo = range_information(means[0], p.static, p.sigma_r)[None]
+    parents = covs[: N // 26]
 
     def kernel():
-        level_kernel(covs, p.F, p.Q, means, pos, sinfo, 1.0 / p.sigma_r**2, 0.0, out, cost)
+        p.level(covs, pos, 0, means, sinfo)
+
+    def last():
+        p.level(parents, pos, 0, means, sinfo, reps=26, want_covs=False)
 
     fig = {"control.level.kernel_s": best_seconds(kernel, repeat=3 if quick else 7)}
+    fig["control.level.last_s"] = best_seconds(last, repeat=3 if quick else 7)
     twin = naive("naive_control")
     if twin is None:
         print(MISSING)
@@ -143,7 +149,7 @@ def _level(quick: bool) -> dict[str, float]:
         fig["control.level.speedup_vs_numpy"] = float("nan")
         return fig
     t_np = best_seconds(
-        lambda: twin.level_numpy(covs, p.F, p.Q, means, pos, sinfo, p.sigma_r),
+        lambda: twin.level_numpy(covs, p.F, p.Q, means[0], pos, sinfo[0], p.sigma_r),
         repeat=2 if quick else 5,
     )
     fig["control.level.numpy_s"] = t_np
@@ -182,4 +188,13 @@ def summarize(fig: dict[str, float]) -> str:
             f"{fig['control.level.speedup_vs_numpy']:.1f}× faster",
         )
     )
+    if "control.level.last_s" in fig:
+        rows.append(
+            (
+                "control.level, a search's last",
+                f"{1e3 * fig['control.level.last_s']:.2f} ms",
+                "26² parents x 26 children",
+                f"{fig['control.level.kernel_s'] / fig['control.level.last_s']:.1f}× the full level",
+            )
+        )
     return format_table(rows, ["figure", "value", "per decision / twin", "theory"])

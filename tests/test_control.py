@@ -24,7 +24,7 @@ from phyloc.control import (
     run_policy,
     search,
 )
-from phyloc.control._kernels import level_kernel
+from phyloc.control._kernels import level_kernel, predict_kernel
 from phyloc.errors import ValidationError
 from phyloc.evaluation import control_experiment as ce
 from phyloc.localization.tracking import (
@@ -90,14 +90,44 @@ def test_kernel_equals_numpy_twin():
     pos = rng.uniform(-50, 50, (N, M1, 3))
     pos[0, 0] = means[0]  # a coincident node
     sinfo = range_information(means, rng.uniform(-50, 50, (1, 3)), 0.3)
+    pred = np.empty_like(covs)
+    predict_kernel(covs, F, Q, pred)
+    np.testing.assert_allclose(pred, F @ covs @ F.T + Q, rtol=1e-12)
     for comm in (None, 60.0):
         out = np.empty_like(covs)
         cost = np.empty(N)
-        level_kernel(covs, F, Q, means, pos, sinfo, 1 / 0.09, comm or 0.0, out, cost)
+        level_kernel(pred, 1, means, pos, sinfo, 1 / 0.09, comm or 0.0, True, out, cost)
         ref_c, ref_cost = level_numpy(covs, F, Q, means, pos, sinfo, 0.3, comm)
         np.testing.assert_allclose(out, ref_c, rtol=1e-10, atol=1e-10)
         np.testing.assert_allclose(cost, ref_cost, rtol=1e-12)
         assert np.all(np.isfinite(out))
+        # the cost alone (a search's last level): the same bits as with the covariances
+        alone = np.empty(N)
+        level_kernel(pred, 1, means, pos, sinfo, 1 / 0.09, comm or 0.0, False, out[:1], alone)
+        np.testing.assert_array_equal(alone, cost)
+
+
+def test_children_share_their_parents_prediction():
+    """``level(parents, positions, reps=r)`` gives exactly the bits of the same level on the
+    parents repeated r times (the tree search's children), and the cost alone is the same."""
+    rng = np.random.default_rng(11)
+    problem = _cv_problem(rng, n_agents=2, M1=2)
+    T = 2
+    means = problem.predicted_means(T)
+    sinfo = problem.static_information(means)
+    L = rng.standard_normal((4, 2, 4, 4))
+    parents = L @ np.swapaxes(L, -1, -2) + np.eye(4)
+    r = 7
+    pos = rng.uniform(-30, 30, (4 * r, 2, 2))
+    covs, cost = problem.level(parents, pos, 1, means, sinfo, reps=r)
+    ref_covs, ref_cost = problem.level(np.repeat(parents, r, axis=0), pos, 1, means, sinfo)
+    np.testing.assert_array_equal(covs, ref_covs)
+    np.testing.assert_array_equal(cost, ref_cost)
+    none, alone = problem.level(parents, pos, 1, means, sinfo, reps=r, want_covs=False)
+    assert none is None
+    np.testing.assert_array_equal(alone, ref_cost)
+    with pytest.raises(ValidationError, match="parents x"):
+        problem.level(parents, pos[:-1], 1, means, sinfo, reps=r)
 
 
 # -- searches ----------------------------------------------------------------------------------

@@ -1,11 +1,13 @@
-"""Numba kernel of the control searches: one horizon level for many tree nodes.
+"""Numba kernels of the control searches: one horizon level for many tree nodes.
 
-``level_kernel`` is the loop body of :meth:`phyloc.control.search.ControlProblem.level`: for
-node ``c`` and agent ``i`` it predicts the covariance ``P⁻ = F P Fᵀ + Q`` (FIM [1]), adds the
-range information of the mobile anchors at the node's positions to the static part,
-``A = A_static + σ⁻² Σ_j q_j q_jᵀ`` (FIM [7]–[9]), and updates ``P = P⁻ − B (I + A S)⁻¹ A Bᵀ``
-(``B = P⁻ Hᵀ``, ``S = H P⁻ Hᵀ``; Woodbury's form of ``(P⁻⁻¹ + HᵀAH)⁻¹``), summing the
-position traces (FIM [10]) per node. Its NumPy twin is ``level_numpy`` in
+:func:`predict_kernel` and :func:`level_kernel` are the loop body of
+:meth:`phyloc.control.search.ControlProblem.level`. For node ``c`` and agent ``i`` the first
+predicts the covariance ``P⁻ = F P Fᵀ + Q`` (FIM [1]), once per parent node: the children of a
+tree node share it. The second adds the range information of the mobile anchors at the node's
+positions to the static part, ``A = A_static + σ⁻² Σ_j q_j q_jᵀ`` (FIM [7]–[9]), and updates
+``P = P⁻ − B (I + A S)⁻¹ A Bᵀ`` (``B = P⁻ Hᵀ``, ``S = H P⁻ Hᵀ``; Woodbury's form of
+``(P⁻⁻¹ + HᵀAH)⁻¹``), summing the position traces (FIM [10]) per node; at a search's last
+level it computes the traces alone. Their NumPy twin is ``level_numpy`` in
 ``tests/naive_control.py`` (the vectorized form of :func:`phyloc.control.fim.update_covariance`).
 
 References
@@ -60,43 +62,13 @@ def _solve_small(M, A, X):
 
 @by_threads
 @njit(cache=True, parallel=True)
-def level_kernel(
-    covs, F, Q, means, positions, static_info, inv_var, comm_range, out_covs, out_cost
-):
-    """One horizon level for every node (parallel over nodes).
-
-    Parameters
-    ----------
-    covs : [N, n_agents, N_D, N_D]
-        Updated covariances of the previous level.
-    F, Q : [N_D, N_D]
-    means : [n_agents, dim]
-        Predicted mean positions at this level.
-    positions : [N, M₁, dim]
-        Mobile anchors' positions at this level.
-    static_info : [n_agents, dim, dim]
-        Information of the static anchors (and agents) at this level.
-    inv_var : float
-        σ⁻².
-    comm_range : float
-        Ranges only within this distance; <= 0: every pair.
-    out_covs : [N, n_agents, N_D, N_D]
-        Updated covariances (written).
-    out_cost : [N]
-        ``Σ_i tr(P_i[:dim, :dim])`` (written).
-    """
+def predict_kernel(covs, F, Q, out):
+    """``out[c, i] = F covs[c, i] Fᵀ + Q`` for every node ``c`` and agent ``i`` (FIM [1];
+    parallel over nodes). A tree level's children share their parent's prediction, so it is
+    computed once per parent (:func:`level_kernel` takes it by parent)."""
     N, n_ag, nd, _ = covs.shape
-    dim = means.shape[1]
-    M1 = positions.shape[1]
     for c in prange(N):
         FP = np.empty((nd, nd))
-        Pp = np.empty((nd, nd))
-        A = np.empty((dim, dim))
-        Mm = np.empty((dim, dim))
-        X = np.empty((dim, dim))
-        BX = np.empty((nd, dim))
-        q = np.empty(dim)
-        total = 0.0
         for i in range(n_ag):
             P = covs[c, i]
             for r in range(nd):
@@ -110,7 +82,56 @@ def level_kernel(
                     s = Q[r, k]
                     for m in range(nd):
                         s += FP[r, m] * F[k, m]
-                    Pp[r, k] = s
+                    out[c, i, r, k] = s
+
+
+@by_threads
+@njit(cache=True, parallel=True)
+def level_kernel(
+    predicted, reps, means, positions, static_info, inv_var, comm_range, want_covs, out_covs,
+    out_cost,
+):  # fmt: skip
+    """One horizon level for every node (parallel over nodes).
+
+    Parameters
+    ----------
+    predicted : [N / reps, n_agents, N_D, N_D]
+        Predicted covariances ``P⁻`` of the parents (:func:`predict_kernel`); node ``c`` is a
+        child of parent ``c // reps``.
+    reps : int
+        Children per parent.
+    means : [n_agents, dim]
+        Predicted mean positions at this level.
+    positions : [N, M₁, dim]
+        Mobile anchors' positions at this level.
+    static_info : [n_agents, dim, dim]
+        Information of the static anchors (and agents) at this level.
+    inv_var : float
+        σ⁻².
+    comm_range : float
+        Ranges only within this distance; <= 0: every pair.
+    want_covs : bool
+        Write ``out_covs``; without, only the position block's diagonal is computed (the last
+        level of a search needs the cost alone), with the same arithmetic, so the same cost.
+    out_covs : [N, n_agents, N_D, N_D]
+        Updated covariances (written when ``want_covs``).
+    out_cost : [N]
+        ``Σ_i tr(P_i[:dim, :dim])`` (written).
+    """
+    N = positions.shape[0]
+    n_ag, nd = predicted.shape[1], predicted.shape[2]
+    dim = means.shape[1]
+    M1 = positions.shape[1]
+    rows = nd if want_covs else dim
+    for c in prange(N):
+        A = np.empty((dim, dim))
+        Mm = np.empty((dim, dim))
+        X = np.empty((dim, dim))
+        BX = np.empty((nd, dim))
+        q = np.empty(dim)
+        total = 0.0
+        for i in range(n_ag):
+            Pp = predicted[c // reps, i]
             for r in range(dim):
                 for k in range(dim):
                     A[r, k] = static_info[i, r, k]
@@ -132,18 +153,36 @@ def level_kernel(
                         s += A[r, m] * Pp[m, k]
                     Mm[r, k] = s
             _solve_small(Mm, A, X)
-            for r in range(nd):  # B X, B = P⁻[:, :dim]
+            for r in range(rows):  # B X, B = P⁻[:, :dim]
                 for k in range(dim):
                     s = 0.0
                     for m in range(dim):
                         s += Pp[r, m] * X[m, k]
                     BX[r, k] = s
-            for r in range(nd):
-                for k in range(nd):
+            if want_covs:
+                for r in range(nd):
+                    for k in range(nd):
+                        s = 0.0
+                        for m in range(dim):
+                            s += BX[r, m] * Pp[k, m]
+                        out_covs[c, i, r, k] = Pp[r, k] - s
+                for r in range(dim):
+                    total += out_covs[c, i, r, r]
+            else:
+                for r in range(dim):
                     s = 0.0
                     for m in range(dim):
-                        s += BX[r, m] * Pp[k, m]
-                    out_covs[c, i, r, k] = Pp[r, k] - s
-            for r in range(dim):
-                total += out_covs[c, i, r, r]
+                        s += BX[r, m] * Pp[r, m]
+                    total += Pp[r, r] - s
         out_cost[c] = total
+
+
+#: :func:`level_kernel` without threads, for levels of fewer nodes than :data:`SERIAL_BELOW`
+#: (the first levels of a tree, a per-anchor search): waking the thread pool costs more than
+#: such a level, and on a busy machine a parallel region waits for every thread. The same code,
+#: so the same values.
+level_serial_kernel = level_kernel.serial_only()
+#: :func:`predict_kernel` without threads (fewer parents than :data:`SERIAL_BELOW`).
+predict_serial_kernel = predict_kernel.serial_only()
+#: Levels of fewer nodes than this run :data:`level_serial_kernel`.
+SERIAL_BELOW = 256

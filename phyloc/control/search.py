@@ -36,7 +36,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from phyloc import _validate as v
-from phyloc.control._kernels import level_kernel
+from phyloc.control._kernels import (
+    SERIAL_BELOW,
+    level_kernel,
+    level_serial_kernel,
+    predict_kernel,
+    predict_serial_kernel,
+)
 from phyloc.control.fim import information_at
 from phyloc.errors import ValidationError
 
@@ -107,26 +113,44 @@ class ControlProblem:
             out.append(A)
         return np.stack(out)
 
-    def level(self, covs, positions, t, means, static_info):
-        """Advance nodes one step: predict ``covs [N, n_agents, N_D, N_D]``, add the range
-        information at the mobile anchors' ``positions [N, M₁, dim]``; returns the updated
-        covariances and the step's cost ``C_t [N]``."""
+    def level(self, covs, positions, t, means, static_info, *, reps=1, want_covs=True):
+        """Advance nodes one step: predict ``covs [N', n_agents, N_D, N_D]``, add the range
+        information at the mobile anchors' ``positions [N, M₁, dim]`` (node ``c`` a child of
+        ``covs[c // reps]``, ``N = N'·reps``); returns the updated covariances (None without
+        ``want_covs``: the last level of a search needs the cost alone) and the step's cost
+        ``C_t [N]``."""
         covs = np.ascontiguousarray(covs, dtype=np.float64)
-        out = np.empty_like(covs)
-        cost = np.empty(covs.shape[0])
-        level_kernel(
+        positions = np.ascontiguousarray(positions, dtype=np.float64)
+        reps = int(reps)
+        if positions.shape[0] != covs.shape[0] * reps:
+            raise ValidationError(
+                "positions", f"{positions.shape[0]} nodes", f"{covs.shape[0]} parents x {reps}"
+            )
+        predicted = np.empty_like(covs)
+        predict = predict_serial_kernel if covs.shape[0] < SERIAL_BELOW else predict_kernel
+        predict(
             covs,
             np.ascontiguousarray(self.F, dtype=np.float64),
             np.ascontiguousarray(self.Q, dtype=np.float64),
+            predicted,
+        )
+        n = positions.shape[0]
+        out = np.empty((n,) + covs.shape[1:]) if want_covs else np.empty((1,) * covs.ndim)
+        cost = np.empty(n)
+        kernel = level_serial_kernel if n < SERIAL_BELOW else level_kernel
+        kernel(
+            predicted,
+            reps,
             np.ascontiguousarray(means[t], dtype=np.float64),
-            np.ascontiguousarray(positions, dtype=np.float64),
+            positions,
             np.ascontiguousarray(static_info[t], dtype=np.float64),
             1.0 / (self.sigma_r * self.sigma_r),
             self.comm_range_m or 0.0,
+            bool(want_covs),
             out,
             cost,
         )
-        return out, cost
+        return (out if want_covs else None), cost
 
 
 def joint_controls(controls: np.ndarray, n_mobile: int) -> np.ndarray:
@@ -212,8 +236,7 @@ def _tree(problem, T, g, keep):
     for t in range(T):
         n = covs.shape[0]
         pos = (pos[:, None] + problem.dt_s * J[None]).reshape(n * nJ, *problem.mobile.shape)
-        covs = np.repeat(covs, nJ, axis=0)
-        covs, cost = problem.level(covs, pos, t, means, sinfo)
+        covs, cost = problem.level(covs, pos, t, means, sinfo, reps=nJ, want_covs=t < T - 1)
         total = np.repeat(total, nJ) + g**t * cost
         first = np.repeat(first, nJ) if t else np.arange(nJ)
         if keep is not None and total.size > keep and t < T - 1:
@@ -233,7 +256,7 @@ def _sequence_cost(problem, seq, g):
     total = 0.0
     for t in range(T):
         pos = pos + problem.dt_s * seq[t][None]
-        covs, cost = problem.level(covs, pos, t, means, sinfo)
+        covs, cost = problem.level(covs, pos, t, means, sinfo, want_covs=t < T - 1)
         total += g**t * float(cost[0])
     return total
 
@@ -254,10 +277,12 @@ def _per_anchor(problem, T, g, *, parallel):
             cand[:, j] = U
             trial_pos = pos + problem.dt_s * cand  # [|U|, M1, dim]
             new_covs, cost = problem.level(
-                np.repeat(covs, U.shape[0], axis=0), trial_pos, t, means, sinfo
+                covs, trial_pos, t, means, sinfo, reps=U.shape[0], want_covs=t < T - 1
             )
             b = int(np.argmin(cost))
             seq[t, j] = U[b]
-            covs, pos = new_covs[b : b + 1], trial_pos[b : b + 1]
+            pos = trial_pos[b : b + 1]
+            if new_covs is not None:
+                covs = new_covs[b : b + 1]
         chosen[:, j] = seq[:, j]
     return chosen[0].copy(), _sequence_cost(problem, chosen, g)
