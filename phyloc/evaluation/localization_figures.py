@@ -112,18 +112,16 @@ def plot(results: dict, path) -> None:
                     label=f"{label} ({init})",
                 )
                 draw_interval(ax, agents, f, names, color)
-        if len(agents) > 1:
-            ax.set_title(f"{tok}: framework distance RMSE (bands: 95 % intervals)")
+        if len(agents) > 1:  # one legend for every scenario, below the panels (_shared_legend)
+            ax.set_title(f"{tok}: framework distance RMSE, 95 % bands")
             ax.set_xlabel("number of agents")
             ax.set_ylabel("RMSE [m]")
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=6, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
         ax = axes[1, j]
         init = "truth_free" if "truth_free" in meta["inits"] else next(iter(meta["inits"]))
         tag = tok + INITS[init]
-        for n, ls in zip(
-            sorted({*meta["agents"]} & set(_cdf_sizes(ser, meta, tag))), ("-", "--"), strict=False
-        ):
+        sizes = sorted({*meta["agents"]} & set(_cdf_sizes(ser, meta, tag)))[:2]
+        for n, ls in zip(sizes, ("-", "--"), strict=False):
             for i, m in enumerate(meta["methods"]):
                 k = f"{m}.{tag}.agents_{n}.error_cdf"
                 if k in ser:
@@ -133,7 +131,7 @@ def plot(results: dict, path) -> None:
         ax.set_xlabel("absolute framework distance error [m]")
         ax.set_ylabel("CDF")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=6)
+        _cdf_legend(ax, meta["methods"], sizes, colours=len(agents) == 1)
     n = max(agents)
     ax = axes[0, -1]
     ax2 = axes[1, -1]
@@ -167,6 +165,8 @@ def plot(results: dict, path) -> None:
         a.grid(True, which="both", alpha=0.3)
     if tracking:
         _plot_tracks(axes[2], ser, meta, toks)
+    if len(agents) > 1:
+        _shared_legend(fig, axes[0, 0])
     fig.suptitle(
         f"Direct vs two-step localization — {meta['recipe']}{' (fast)' if meta.get('fast') else ''}"
     )
@@ -175,6 +175,33 @@ def plot(results: dict, path) -> None:
         plot_cost(results, Path(path).with_name(Path(path).stem + "_cost.png"))
     if any(k.endswith(".map_estimates") for k in ser):
         plot_map(results, Path(path).with_name(Path(path).stem + "_map.png"))
+
+
+def _shared_legend(fig, ax) -> None:
+    """The RMSE panels' legend (the same methods in every scenario) once, below the figure, so
+    that it takes no width from the panels."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        fig.legend(
+            handles, labels, loc="outside lower center", ncol=min(len(labels), 6), fontsize=7
+        )
+
+
+def _cdf_legend(ax, methods, sizes, *, colours: bool) -> None:
+    """A CDF panel's legend: a line style per network size and, with ``colours`` (no shared
+    legend below the figure names the methods' colours), a colour per method, not one entry
+    per method and size."""
+    from matplotlib.lines import Line2D
+
+    handles = (
+        [Line2D([], [], color=f"C{i}", label=m) for i, m in enumerate(methods)] if colours else []
+    )
+    handles += [
+        Line2D([], [], ls=ls, color="0.3", label=f"{n} agents")
+        for n, ls in zip(sizes, ("-", "--"), strict=False)
+    ]
+    if sizes:
+        ax.legend(handles=handles, fontsize=6, loc="best", ncol=2 if len(handles) > 8 else 1)
 
 
 def plot_map(results: dict, path) -> None:
