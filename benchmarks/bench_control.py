@@ -194,7 +194,8 @@ def summarize(fig: dict[str, float]) -> str:
                 "control.level, a search's last",
                 f"{1e3 * fig['control.level.last_s']:.2f} ms",
                 "26² parents x 26 children",
-                f"{fig['control.level.kernel_s'] / fig['control.level.last_s']:.1f}× the full level",
+                f"{fig['control.level.kernel_s'] / fig['control.level.last_s']:.1f}× faster "
+                "than the full level",
             )
         )
     return format_table(rows, ["figure", "value", "per decision / twin", "theory"])

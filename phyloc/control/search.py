@@ -135,7 +135,7 @@ class ControlProblem:
             predicted,
         )
         n = positions.shape[0]
-        out = np.empty((n,) + covs.shape[1:]) if want_covs else np.empty((1,) * covs.ndim)
+        out = np.empty((n, *covs.shape[1:])) if want_covs else np.empty((1,) * covs.ndim)
         cost = np.empty(n)
         kernel = level_serial_kernel if n < SERIAL_BELOW else level_kernel
         kernel(
