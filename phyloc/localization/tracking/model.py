@@ -118,11 +118,17 @@ class RangeModel:
 
         Built once per model and returned as fresh copies (a tracking or control loop asks for
         them every step; building them costs ~1 ms, copying them ~1 µs)."""
-        cached = self.__dict__.get("_matrices")
-        if cached is None:
-            cached = self._build_matrices()
-            object.__setattr__(self, "_matrices", cached)
-        return cached[0].copy(), cached[1].copy()
+        F, Q = self._once("_matrices", self._build_matrices)
+        return F.copy(), Q.copy()
+
+    def _once(self, key, build):
+        """``build()``, computed on the first call for this model and kept (the model is frozen,
+        so its matrices never change)."""
+        value = self.__dict__.get(key)
+        if value is None:
+            value = build()
+            object.__setattr__(self, key, value)
+        return value
 
     def _build_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         if self.motion == "static":
@@ -137,11 +143,7 @@ class RangeModel:
     def noise_gain(self) -> np.ndarray:
         """``G`` of PF-BP eq. (3), ``[N_D, motion_dim]`` (static: zeros); built once per model,
         returned as a fresh copy."""
-        cached = self.__dict__.get("_noise_gain")
-        if cached is None:
-            cached = self._build_noise_gain()
-            object.__setattr__(self, "_noise_gain", cached)
-        return cached.copy()
+        return self._once("_noise_gain", self._build_noise_gain).copy()
 
     def _build_noise_gain(self) -> np.ndarray:
         if self.motion == "static":
