@@ -386,13 +386,14 @@ def test_a_variant_runs_its_base_method_with_its_own_table():
         assert err.value.field.startswith(key), err.value.field
 
 
-@pytest.mark.slow  # 12 fresh processes: ~1 min
+@pytest.mark.slow  # 24 fresh processes: ~2 min
 def test_memory_study_grows_as_the_methods_store_particles(tmp_path, capsys):
     """The memory recipe's fast setting from the command line (3 and 6 agents, SIR-BP with 10⁴
-    particles): SIR-BP's run needs at least one [M, 9] float64 particle array more per added
-    agent (its belief), PF-BP's (200 particles, Gaussian messages) stays below a tenth of
-    SIR-BP's, every figure is measured (peak above the run's own part, both finite), and the
-    memory figure is written and named."""
+    particles, 2 repeats): SIR-BP's run needs at least one [M, 9] float64 particle array more
+    per added agent (its belief), PF-BP's (200 particles, Gaussian messages) stays below a
+    tenth of SIR-BP's in each repeat, every figure is measured (peak above the run's own part,
+    both finite), each is the mean of its two stored repeats with an interval around it, and
+    the memory figure is written and named."""
     import json
 
     from phyloc.cli import main
@@ -405,12 +406,22 @@ def test_memory_study_grows_as_the_methods_store_particles(tmp_path, capsys):
     one_array_mb = 10_000 * 9 * 8 / 2**20
     grow = f["sirbp.s1_r18.agents_6.run_rss_mb"] - f["sirbp.s1_r18.agents_3.run_rss_mb"]
     assert grow >= 3 * one_array_mb
-    assert f["pfbp.s1_r18.agents_6.run_rss_mb"] < 0.1 * f["sirbp.s1_r18.agents_6.run_rss_mb"]
+    units = {
+        m: np.array(res["series"][f"{m}.s1_r18.agents_6.run_rss_mb.units"]["num"])
+        for m in ("pfbp", "sirbp")
+    }
+    assert units["pfbp"].shape == (2,) and np.all(units["pfbp"] < 0.1 * units["sirbp"])
     for m in ("pfbp", "sirbp", "spbp", "edh"):
         for n in (3, 6):
-            peak = f[f"{m}.s1_r18.agents_{n}.peak_rss_mb"]
-            run = f[f"{m}.s1_r18.agents_{n}.run_rss_mb"]
+            name = f"{m}.s1_r18.agents_{n}"
+            peak, run = f[f"{name}.peak_rss_mb"], f[f"{name}.run_rss_mb"]
             assert math.isfinite(peak) and 0 <= run < peak
+            for fig in ("peak_rss_mb", "run_rss_mb"):
+                u = res["series"][f"{name}.{fig}.units"]
+                assert u["kind"] == "mean" and u["den"] == [1.0, 1.0]
+                assert f[f"{name}.{fig}"] == pytest.approx(np.mean(u["num"]), rel=1e-12)
+                lo, hi = f[f"{name}.{fig}.ci_low"], f[f"{name}.{fig}.ci_high"]
+                assert lo <= f[f"{name}.{fig}"] <= hi  # two repeats: [min, max]
     assert res["series"]["memory_agents"] == [3, 6]
     memory_png = out / "pfbp_memory_memory.png"
     assert memory_png.stat().st_size > 0

@@ -124,7 +124,8 @@ particle flow of two cooperating agents near three anchors (PF-BP Fig. 1,
 :func:`~phyloc.evaluation.range_scenarios.flow_example`), drawn as ``<recipe>_flow.png``.
 With ``memory_agents``, the memory study
 (:func:`~phyloc.evaluation.tracking_memory.memory_study`): figures
-``<m>.<s>.peak_rss_mb`` / ``run_rss_mb`` (and per size ``<m>.<s>.agents_<n>.*``), series
+``<m>.<s>.peak_rss_mb`` / ``run_rss_mb`` (and per size ``<m>.<s>.agents_<n>.*``; means over
+``memory_repeats`` fresh-process measurements, with their intervals and units), series
 ``memory_agents`` and ``<m>.<s>.peak_rss_mb_by_agents``, drawn as ``<recipe>_memory.png``.
 
 Timings are wall times of this process; with several workers on a shared machine they include
@@ -224,6 +225,11 @@ class TrackingExperimentSpec:
         scenario at its own size (``<m>.<s>.peak_rss_mb``).
     memory_steps : int
         Time steps of each memory run (1: the arrays of a step are all a run allocates).
+    memory_repeats : int
+        Fresh-process measurements per method and size (default 1). The figures are their
+        means; with two or more they carry 95 % intervals and the methods compare paired (each
+        repeat draws its own network, the same for every method), so the ledger can decide a
+        claim on memory.
     """
 
     scenarios: dict = field(
@@ -252,6 +258,7 @@ class TrackingExperimentSpec:
     method_runs: dict = field(default_factory=dict)
     memory_agents: tuple = ()
     memory_steps: int = 1
+    memory_repeats: int = 1
 
     def __post_init__(self):
         if not isinstance(self.scenarios, dict) or not self.scenarios:
@@ -340,6 +347,7 @@ class TrackingExperimentSpec:
         )
         object.__setattr__(self, "memory_agents", sizes)
         v.integer("experiment.memory_steps", self.memory_steps, minimum=1)
+        v.integer("experiment.memory_repeats", self.memory_repeats, minimum=1)
 
     def model(self) -> RangeModel:
         """The :class:`RangeModel` of the recipe."""
@@ -606,7 +614,7 @@ class TrackingExperiment(Experiment):
             series["memory_agents"] = np.asarray(exp.memory_agents)
             for m in exp.methods:
                 series[f"{m}.{first}.peak_rss_mb_by_agents"] = np.array(
-                    [mem[f"{m}.{first}.agents_{n}.peak_rss_mb"] for n in exp.memory_agents]
+                    [mem[f"{m}.{first}.agents_{n}.peak_rss_mb"].value for n in exp.memory_agents]
                 )
         return figures, series
 
@@ -627,6 +635,7 @@ class TrackingExperiment(Experiment):
             "labels": {m: METHODS[m].label if m == b else m for m, b in bases.items()},
             "bases": dict(bases),
             "memory_agents": list(exp.memory_agents),
+            "memory_repeats": exp.memory_repeats,
             "timing": "median wall time over all steps of all runs (includes worker contention)",
         }
         if exp.measurements == "sage":

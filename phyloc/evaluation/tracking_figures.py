@@ -272,8 +272,16 @@ def _plot_memory(results: dict, path) -> None:
     n = ser["memory_agents"]
     fig, ax = new_figure(size=(5.5, 4.0))
     for i, m in enumerate(meta["methods"]):
-        run = [fig_[f"{m}.{first}.agents_{a}.run_rss_mb"] for a in n]
-        ax.loglog(n, np.maximum(run, 0.1), "o-", color=f"C{i}", label=m)
+        name = [f"{m}.{first}.agents_{a}.run_rss_mb" for a in n]
+        run = np.maximum([fig_[k] for k in name], 0.1)
+        ax.loglog(n, run, "o-", color=f"C{i}", label=m)
+        lo, hi = (
+            np.array([fig_.get(k + end) for k in name], dtype=float)  # None (JSON null): NaN
+            for end in (".ci_low", ".ci_high")
+        )
+        if np.any(np.isfinite(lo) & np.isfinite(hi)):  # repeated measurements: 95 % intervals
+            err = [run - np.maximum(lo, 0.1), np.maximum(hi, 0.1) - run]
+            ax.errorbar(n, run, yerr=np.nan_to_num(err), fmt="none", ecolor=f"C{i}", capsize=3)
     ax.set_xlabel("number of agents")
     ax.set_ylabel("memory of one run [MB] (peak RSS added)")
     ax.grid(True, which="both", alpha=0.3)

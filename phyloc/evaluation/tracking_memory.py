@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from phyloc.evaluation.rss import peak_rss_mb, reset_peak_rss, status_mb
+from phyloc.evaluation.statistics import Pooled
 from phyloc.evaluation.tracking_scenarios import gaussian_run
 from phyloc.localization import METHODS
 from phyloc.localization.tracking import paper_prior
@@ -58,13 +59,17 @@ def memory_study(exp, options, bases, seed, *, progress=True) -> dict:
     per agent where SIR-BP keeps and exchanges particles).
 
     Each (method, network) runs :func:`_memory_probe` in a fresh spawned process, one at a
-    time (``ru_maxrss`` is a per-process high-water mark). Networks: every scenario of ``exp``
-    at its own size, and ``exp.memory_agents`` at the first scenario's communication range,
+    time (``ru_maxrss`` is a per-process high-water mark), ``exp.memory_repeats`` times: the
+    repeats are the figures' units (each a network and prior of its own, the same ones for
+    every method, so two methods compare paired). Networks: every scenario of ``exp`` at its
+    own size, and ``exp.memory_agents`` at the first scenario's communication range,
     ``exp.memory_steps`` steps each, Gaussian range measurements (the tracker's memory does not
-    depend on how the ranges were measured). Returns figures ``<m>.<s>.peak_rss_mb`` (the
-    process's peak RSS during the run) and ``<m>.<s>.run_rss_mb`` (that peak minus the RSS
-    before the run: what the method itself needed), and the same per size as
-    ``<m>.<s>.agents_<n>.peak_rss_mb`` / ``.run_rss_mb``."""
+    depend on how the ranges were measured). Returns :class:`~phyloc.evaluation.statistics.Pooled`
+    means over the repeats: ``<m>.<s>.peak_rss_mb`` (the process's peak RSS during the run)
+    and ``<m>.<s>.run_rss_mb`` (that peak minus the RSS before the run: what the method itself
+    needed), and the same per size as ``<m>.<s>.agents_<n>.peak_rss_mb`` / ``.run_rss_mb``.
+    Repeat 0 draws its network from the job's seed as a single measurement does; repeat
+    ``i > 0`` from that seed's ``i``-th spawned child."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
@@ -80,23 +85,28 @@ def memory_study(exp, options, bases, seed, *, progress=True) -> dict:
     for n in exp.memory_agents:
         r = exp.scenarios[first]["comm_range_m"]
         jobs.append((f"{first}.agents_{n}", {"n_agents": n, "comm_range_m": r}))
-    seeds = np.random.SeedSequence(seed).spawn(len(jobs))
+    reps = exp.memory_repeats
+    seeds = [[s, *s.spawn(reps - 1)] for s in np.random.SeedSequence(seed).spawn(len(jobs))]
     ctx = multiprocessing.get_context("spawn")
-    figures = {}
     todo = [
         (m, label, scen, s)
         for m in exp.methods
         for (label, scen), s in zip(jobs, seeds, strict=True)
     ]
-    bar = tqdm(total=len(todo), desc="memory", disable=not progress or _quiet_progress())
+    bar = tqdm(total=len(todo) * reps, desc="memory", disable=not progress or _quiet_progress())
+    figures = {}
     try:
-        for m, label, scen, s in todo:
-            with ProcessPoolExecutor(1, mp_context=ctx) as pool:
-                payload = (short, scen, options[m], bases[m], s)
-                before, after = pool.submit(_memory_probe, payload).result()
-            figures[f"{m}.{label}.peak_rss_mb"] = after
-            figures[f"{m}.{label}.run_rss_mb"] = max(after - before, 0.0)
-            bar.update(1)
+        for m, label, scen, job_seeds in todo:
+            peak, run = [], []
+            for s in job_seeds:
+                with ProcessPoolExecutor(1, mp_context=ctx) as pool:
+                    payload = (short, scen, options[m], bases[m], s)
+                    before, after = pool.submit(_memory_probe, payload).result()
+                peak.append(after)
+                run.append(max(after - before, 0.0))
+                bar.update(1)
+            figures[f"{m}.{label}.peak_rss_mb"] = Pooled.mean(peak)
+            figures[f"{m}.{label}.run_rss_mb"] = Pooled.mean(run)
     finally:
         bar.close()
     return figures
