@@ -282,6 +282,7 @@ def test_same_results_with_one_and_two_workers():
         (("[localization.edh]", "[localization.ed]"), False, "localization.ed"),
         (("runs = 2", "runs = 2\nmemory_agents = [5, 0]"), False, "experiment.memory_agents"),
         (("runs = 2", "runs = 2\nmemory_steps = 0"), False, "experiment.memory_steps"),
+        (("runs = 2", "runs = 2\nmemory_repeats = 0"), False, "experiment.memory_repeats"),
         (("runs = 2", "runs = 2\nmethod_runs = { sirpb = 1 }"), False, "experiment.method_runs"),
         (
             ("runs = 2", "runs = 2\nmethod_runs = { sirbp = 0 }"),
