@@ -20,14 +20,21 @@ steps of one run after a warm-up run (JIT compilation). Figures (names are the i
 ``spbp.s1_rinf.agent_s``                  ... per agent [s]
 ``<m>.s2_r18.step_s``, ``<m>.s2_r18.agent_s``   the same for Scenario II (20 agents,
                                           r_max = 18 m; ``m`` in pfbp, edh, sirbp, spbp; SIR-BP
-                                          with ``sirbp.n_particles``), Table II
+                                          with ``sirbp.n_particles``; PF-BP exchanging Gaussian
+                                          beliefs, as the Scenario II recipe), Table II
 ``sirbp_over_pfbp.s2_r18.step_ratio``     SIR-BP time / PF-BP time per step in Scenario II
 ``pfbp_over_edh.s2_r18.step_ratio``       PF-BP time / EDH time per step in Scenario II (Table II:
                                           0.9 / 0.25 s = 3.6)
 ``pfbp_numpy.s2_r18.step_s``              PF-BP with the NumPy flow twin in Scenario II [s]
-``pfbp_numpy_over_edh.s2_r18.step_ratio`` ... over EDH's time per step: Table II's order with the
-                                          flow written as plain array code, as the paper's
-                                          implementation may have had it (omitted with the twin)
+``edh_numpy.s2_r18.step_s``               EDH with the NumPy flow twin in Scenario II [s]
+``pfbp_numpy_over_edh.s2_r18.step_ratio`` PF-BP with the NumPy flow over EDH (numba flow)
+``pfbp_numpy_over_edh_numpy.s2_r18.step_ratio``   ... over EDH with the NumPy flow too: Table
+                                          II's order with the flow of both written as plain
+                                          array code, as the paper's implementation may have had
+                                          it (the three omitted with the twin)
+``<m>.s2_r18.stage.<stage>_s``            the median step of ``<m>`` (also ``pfbp_numpy``,
+                                          ``edh_numpy``) split by stage
+                                          (:data:`phyloc.localization.tracking.loop.STAGES`)
 
 Everything runs with one BLAS thread (as the experiment runner does): the matrices are small, and
 OpenBLAS threads on a busy machine made a Scenario II step up to 10x slower. The trackers run
@@ -61,6 +68,7 @@ from phyloc.localization.tracking import (
     run_spbp,
     use_flow,
 )
+from phyloc.localization.tracking.loop import STAGES
 from phyloc.network import make_network
 from phyloc.reporting import format_table
 
@@ -94,10 +102,14 @@ def make_scenario(n_steps=5, seed=0, n_agents=N_AGENTS, comm_range_m=None):
     return meas, paper_prior(meas, rng)
 
 
-def _median_step(fn, meas, prior, opt, flow=None):
+def _median_step(fn, meas, prior, opt, flow=None, stages=None):
+    """Median time per step and per agent of one run after a warm-up run; with a dict
+    ``stages``, the median of each stage of the step (``diagnostics["stage_s"]``) goes in it."""
     with use_flow(flow):
         fn(meas, prior, np.random.default_rng(1), opt)  # warm-up (JIT)
         r = fn(meas, prior, np.random.default_rng(2), opt)
+    if stages is not None:
+        stages.update({k: float(np.median(v)) for k, v in r.diagnostics["stage_s"].items()})
     return float(np.median(r.timing.step_s)), float(np.median(r.timing.agent_s))
 
 
@@ -146,27 +158,37 @@ def _report_s2(quick: bool) -> dict[str, float]:
     n_sir = 10_000 if quick else 100_000
     meas, prior = make_scenario(1 if quick else 2, seed=1, n_agents=20, comm_range_m=18.0)
     opt = PFBPOptions(n_particles=N_PARTICLES, n_lambda=N_LAMBDA, n_iterations=N_ITER)
+    # PF-BP as Scenario II runs it (datasets/pfbp_scenario2.toml): Gaussian beliefs exchanged
+    pf_opt = dataclasses.replace(opt, exchange="gaussian")
     fig: dict[str, float] = {}
     runs = {
-        "pfbp": (run_pfbp, opt),
-        "edh": (run_edh, opt),
-        "sirbp": (run_sirbp, SIRBPOptions(n_particles=n_sir, n_iterations=N_ITER)),
-        "spbp": (run_spbp, SPBPOptions(n_iterations=N_ITER)),
+        "pfbp": (run_pfbp, pf_opt, None),
+        "edh": (run_edh, opt, None),
+        "sirbp": (run_sirbp, SIRBPOptions(n_particles=n_sir, n_iterations=N_ITER), None),
+        "spbp": (run_spbp, SPBPOptions(n_iterations=N_ITER), None),
     }
-    for name, (fn, o) in runs.items():
-        step, agent = _median_step(fn, meas, prior, o)
+    flow = _numpy_flow()
+    if flow is not None:  # Table II's order with the flow as plain array code, in both methods
+        runs["pfbp_numpy"] = (run_pfbp, pf_opt, flow)
+        runs["edh_numpy"] = (run_edh, opt, flow)
+    for name, (fn, o, fl) in runs.items():
+        stages: dict[str, float] = {}
+        step, agent = _median_step(fn, meas, prior, o, fl, stages)
         fig[f"{name}.s2_r18.step_s"] = step
-        if name != "edh":
+        if not name.startswith("edh"):
             fig[f"{name}.s2_r18.agent_s"] = agent
+        for stage, seconds in stages.items():
+            fig[f"{name}.s2_r18.stage.{stage}_s"] = seconds
     fig["sirbp_over_pfbp.s2_r18.step_ratio"] = (
         fig["sirbp.s2_r18.step_s"] / fig["pfbp.s2_r18.step_s"]
     )
     fig["pfbp_over_edh.s2_r18.step_ratio"] = fig["pfbp.s2_r18.step_s"] / fig["edh.s2_r18.step_s"]
-    flow = _numpy_flow()
-    if flow is not None:  # Table II's order with the flow as plain array code
-        fig["pfbp_numpy.s2_r18.step_s"] = _median_step(run_pfbp, meas, prior, opt, flow)[0]
+    if flow is not None:
         fig["pfbp_numpy_over_edh.s2_r18.step_ratio"] = (
             fig["pfbp_numpy.s2_r18.step_s"] / fig["edh.s2_r18.step_s"]
+        )
+        fig["pfbp_numpy_over_edh_numpy.s2_r18.step_ratio"] = (
+            fig["pfbp_numpy.s2_r18.step_s"] / fig["edh_numpy.s2_r18.step_s"]
         )
     return fig
 
@@ -220,21 +242,32 @@ def summarize(fig: dict) -> str:
     table = format_table(rows, ["Scenario I, r_max = inf", "step [s]", "per agent [s]"])
     rows2 = [
         (label, fig[f"{m}.s2_r18.step_s"], fig.get(f"{m}.s2_r18.agent_s"))
-        for m, label in (
-            ("pfbp", "PF-BP"),
-            *((("pfbp_numpy", "PF-BP (NumPy flow)"),) if "pfbp_numpy.s2_r18.step_s" in fig else ()),
-            ("edh", "EDH (joint)"),
-            ("sirbp", f"SIR-BP ({int(fig['sirbp.n_particles'])} particles)"),
-            ("spbp", "SP-BP"),
-        )
+        for m, label in _scenario2_rows(fig)
     ]
     table2 = format_table(rows2, ["Scenario II, r_max = 18 m", "step [s]", "per agent [s]"])
+    labels = dict(_scenario2_rows(fig))
+    rows3 = [(labels[m], *(fig.get(f"{m}.s2_r18.stage.{st}_s") for st in STAGES)) for m in labels]
+    table3 = format_table(rows3, ["Scenario II step by stage [s]", *STAGES])
     speedup = fig.get("pfbp.flow_kernel.speedup_vs_numpy", float("nan"))
+    both = fig.get("pfbp_numpy_over_edh_numpy.s2_r18.step_ratio", float("nan"))
     return (
-        f"{table}\n{table2}\n"
+        f"{table}\n{table2}\n{table3}\n"
         f"PF-BP particles x lambda-steps per s: {fig['pfbp.particle_flow_steps_per_s']:.4g}; "
         f"flow kernel speed-up vs NumPy: {speedup:.3g}; "
         f"SIR-BP / PF-BP per step: {fig['sirbp_over_pfbp.step_ratio']:.3g}; Scenario II "
         f"PF-BP / EDH per step: {fig['pfbp_over_edh.s2_r18.step_ratio']:.3g} (NumPy flow: "
-        f"{fig.get('pfbp_numpy_over_edh.s2_r18.step_ratio', float('nan')):.3g}; Table II 3.6)"
+        f"{fig.get('pfbp_numpy_over_edh.s2_r18.step_ratio', float('nan')):.3g}, both methods "
+        f"with it: {both:.3g}; Table II 3.6)"
     )
+
+
+def _scenario2_rows(fig: dict):
+    """``(method key, label)`` of the Scenario II rows of :func:`summarize`."""
+    yield "pfbp", "PF-BP"
+    if "pfbp_numpy.s2_r18.step_s" in fig:
+        yield "pfbp_numpy", "PF-BP (NumPy flow)"
+    yield "edh", "EDH (joint)"
+    if "edh_numpy.s2_r18.step_s" in fig:
+        yield "edh_numpy", "EDH (NumPy flow)"
+    yield "sirbp", f"SIR-BP ({int(fig['sirbp.n_particles'])} particles)"
+    yield "spbp", "SP-BP"

@@ -125,3 +125,79 @@ def test_stepping_the_loop_equals_track(name):
     assert res.label == name and (res.particles is None) == (name == "spbp")
     joint = name == "edh"
     assert t.belief.joint == joint and np.isnan(res.timing.agent_s).all() == joint
+
+
+#: The stages each method times within its update (besides predict, estimate and other), with
+#: the regularized options of :func:`_updates`.
+UPDATE_STAGES = {
+    "pfbp": {"flow", "weights", "resample", "covariance", "regularize"},
+    "sirbp": {"weights", "resample"},
+    "spbp": {"covariance"},
+    "edh": {"flow", "weights", "resample", "covariance", "regularize"},
+}
+
+
+@pytest.mark.parametrize("name", ["pfbp", "sirbp", "spbp", "edh"])
+def test_the_stages_split_each_step(name):
+    """``diagnostics["stage_s"]``: the stages of :data:`STAGES` the method has, each a
+    non-negative time per step, and together the step's wall time (the clock's own cost, a few
+    microseconds per stage, aside)."""
+    from phyloc.localization.tracking.loop import STAGES, track
+
+    meas, prior, _ = _tiny_problem()
+    res = track(meas, prior, np.random.default_rng(3), _updates(meas)[name])
+    stages = res.diagnostics["stage_s"]
+    assert set(stages) == UPDATE_STAGES[name] | {"predict", "estimate", "other"}
+    assert list(stages) == [s for s in STAGES if s in stages]  # in the order of a step
+    total = np.zeros(meas.n_steps)
+    for seconds in stages.values():
+        assert seconds.shape == (meas.n_steps,) and np.all(seconds >= 0)
+        total += seconds
+    np.testing.assert_allclose(total, res.timing.step_s, rtol=0.05, atol=2e-4)
+
+
+@pytest.mark.parametrize("name", ["pfbp", "edh"])
+def test_a_slow_flow_is_counted_in_the_flow_stage(name):
+    """A flow that sleeps 20 ms per call (installed with ``use_flow``) adds its time to the
+    ``flow`` stage of every step, at least 20 ms per call, and to no other stage."""
+    import time
+
+    from phyloc.localization.tracking import _flow
+    from phyloc.localization.tracking.loop import track
+
+    calls = []
+
+    def slow(X, mean, *args):
+        calls.append(1)
+        time.sleep(0.02)
+        return np.array(X, dtype=float), np.array(mean, dtype=float)
+
+    meas, prior, _ = _tiny_problem()
+    with _flow.use_flow(slow):
+        res = track(meas, prior, np.random.default_rng(3), _updates(meas)[name])
+    flow = res.diagnostics["stage_s"]["flow"]
+    assert flow.sum() >= 0.02 * len(calls) > 0
+    for stage, seconds in res.diagnostics["stage_s"].items():
+        if stage != "flow":
+            assert np.all(seconds < 0.02), (stage, seconds)
+
+
+def test_an_unknown_stage_is_refused():
+    from phyloc.errors import ValidationError
+    from phyloc.localization.tracking.loop import StageClock
+
+    with pytest.raises(ValidationError, match="stage"), StageClock()("flw"):
+        pass
+
+
+def test_pfbp_with_gaussian_messages_times_its_sampling():
+    """With ``exchange = "gaussian"`` (PF-BP §VI) an agent draws its neighbours' particles from
+    their Gaussian beliefs: a ``sample`` stage, which particle messages do not have."""
+    from phyloc.localization.tracking.loop import track
+    from phyloc.localization.tracking.pfbp import PFBPOptions, PFBPUpdate
+
+    meas, prior, _ = _tiny_problem()
+    opt = PFBPOptions(n_particles=300, n_lambda=5, exchange="gaussian")
+    res = track(meas, prior, np.random.default_rng(3), PFBPUpdate(meas.model, opt))
+    assert "sample" in res.diagnostics["stage_s"] and "regularize" not in res.diagnostics["stage_s"]
+    assert np.all(res.diagnostics["stage_s"]["sample"] > 0)

@@ -71,6 +71,9 @@ def test_pooled_figures_have_intervals_and_one_value_per_run(tiny):
         for k in meta["outage_steps"]:
             expected += [f"{m}.s1.k{k}.outage_{x}" for x in ("0p1m", "0p3m", "1m")]
         expected += [f"{m}.s1.step_s"] + ([f"{m}.s1.agent_s"] if m != "edh" else [])
+        stages = [n for n in f if n.startswith(f"{m}.s1.stage.") and n.endswith("_s")]
+        assert {f"{m}.s1.stage.{s}_s" for s in ("predict", "estimate", "other")} <= set(stages)
+        expected += stages
     expected.append("s1.anchor_localizable_fraction")
     for k in meta["report_steps"]:  # the conditional bound: the mean of the runs' own bounds
         expected += [f"pcrlb_cond.s1.k{k}.{q}" for q in ("p_m", "v_m_s", "a_m_s2")]
@@ -90,6 +93,10 @@ def test_pooled_figures_have_intervals_and_one_value_per_run(tiny):
         assert lo <= f[n] * (1 + 1e-12) and f[n] <= hi * (1 + 1e-12), n
         if n.endswith(("step_s", "agent_s")):  # per run: its median step time
             assert u["kind"] == "mean" and den == [1.0] * runs and all(x > 0 for x in num)
+        elif ".stage." in n:  # per run: the median step of the stage, below the whole step's
+            assert u["kind"] == "mean" and den == [1.0] * runs and all(x >= 0 for x in num)
+            step = ser[n.split(".stage.")[0] + ".step_s.units"]["num"]
+            assert all(x <= 1.05 * s for x, s in zip(num, step, strict=True)), n
         elif n.endswith("anchor_localizable_fraction"):  # per run: its positions
             assert u["kind"] == "mean" and den == [K * n_agents] * runs
             assert all(x == int(x) and 0 <= x <= K * n_agents for x in num)
@@ -227,6 +234,7 @@ def test_fast_scenario1_has_every_documented_figure(fast_s1, tmp_path):
     assert all(0.0 <= f[n] <= 1.0 for n in f if ".outage_" in n)
     te.plot(fast_s1, tmp_path / "t.png")
     assert (tmp_path / "t.png").stat().st_size > 10_000
+    assert (tmp_path / "t_stages.png").stat().st_size > 10_000  # the step by stage
     rows = te.summary_rows(fast_s1)
     assert len(rows) == 2 * (len(meta["methods"]) + 2)  # + the two PCRLB rows
     assert all(len(r) == len(te.summary_headers(fast_s1)) for r in rows)

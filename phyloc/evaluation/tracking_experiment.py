@@ -81,6 +81,12 @@ point, e.g. ``1`` → ``1m``, ``0.1`` → ``0p1m``)::
     ``<m>.<s>.agent_s``              ... per agent, distributed processing [s] (not for methods
                                      without a distributed form, whose ``agent_s`` is NaN:
                                      ``edh``)
+    ``<m>.<s>.stage.<stage>_s``      ``step_s`` split by stage (each run's median step of the
+                                     stage, averaged over runs, with an interval): the stages
+                                     of :data:`~phyloc.localization.tracking.loop.STAGES` the
+                                     method has (``predict``, ``sample``, ``flow``,
+                                     ``weights``, ``resample``, ``covariance``,
+                                     ``regularize``, ``estimate``, ``other``)
     ``<m>.<s>.floats_per_link_iteration``   floats one agent sends one neighbour per
                                      message-passing iteration (its belief: particles, or mean
                                      and covariance; PF-BP §VI), from the method's
@@ -110,7 +116,8 @@ Clopper–Pearson intervals; every ``…_vs_….ratio`` has the paired bootstrap
 runs' own bounds: it has an interval over runs and per-run values (``.units``), and
 ``rmse_over_pcrlb_cond`` has the paired bootstrap's interval over the runs the method ran (the
 errors and the bounds of the same trajectories resampled together). So do the mean time per
-step ``step_s`` / ``agent_s`` and ``sirbp_over_pfbp.<s>.step_ratio`` (paired over runs). The
+step ``step_s`` / ``agent_s``, its stages ``stage.<stage>_s`` and
+``sirbp_over_pfbp.<s>.step_ratio`` (paired over runs). The
 Bayesian ``pcrlb.*`` averages the information over runs, not per-run bounds: it and
 ``rmse_over_pcrlb`` carry none, nor do ``pcrlb_cond_one_range.*`` and the memory figures.
 
@@ -127,6 +134,7 @@ With ``memory_agents``, the memory study
 ``<m>.<s>.peak_rss_mb`` / ``run_rss_mb`` (and per size ``<m>.<s>.agents_<n>.*``; means over
 ``memory_repeats`` fresh-process measurements, with their intervals and units), series
 ``memory_agents`` and ``<m>.<s>.peak_rss_mb_by_agents``, drawn as ``<recipe>_memory.png``.
+The time per step by stage (``<m>.<s>.stage.<stage>_s``) is drawn as ``<recipe>_stages.png``.
 
 Timings are wall times of this process; with several workers on a shared machine they include
 contention. Everything except the timings is identical for a seed whatever the worker count.
@@ -400,6 +408,7 @@ def _task(payload, seed_seq):
             out[f"{m}|e_{name}"] = np.linalg.norm(e, axis=-1)  # [K, n_agents]
         out[f"{m}|step_s"] = res.timing.step_s
         out[f"{m}|agent_s"] = res.timing.agent_s
+        out[f"{m}|stage_s"] = res.diagnostics.get("stage_s", {})
         out[f"{m}|floats"] = float(res.diagnostics.get("floats_per_link_iteration", np.nan))
     return out
 
@@ -548,6 +557,10 @@ def _aggregate(keys, results, exp):
             if not np.all(np.isnan(m_parts[0][f"{m}|agent_s"])):  # NaN: no distributed form
                 figures[f"{base}.agent_s"] = Pooled.mean(
                     [[np.median(p[f"{m}|agent_s"])] for p in m_parts]
+                )
+            for stage in m_parts[0][f"{m}|stage_s"]:  # the step by stage, the same way
+                figures[f"{base}.stage.{stage}_s"] = Pooled.mean(
+                    [[np.median(p[f"{m}|stage_s"][stage])] for p in m_parts]
                 )
             floats = m_parts[0][f"{m}|floats"]
             if not np.isnan(floats):  # NaN: exchanges no beliefs (edh)

@@ -36,9 +36,14 @@ def range_text(r) -> str:
 
 
 def is_timing(name: str) -> bool:
-    """True for the wall-time figures (the only ones that depend on the machine) and their
-    interval bounds."""
-    return base_figure(name).endswith(TIMING_SUFFIXES)
+    """True for the wall-time figures (the only ones that depend on the machine: the time
+    per step, per agent, by stage, and their ratios) and their interval bounds.
+
+    >>> is_timing("pfbp.s1_r18.stage.flow_s.ci_low"), is_timing("pfbp.s1_r18.k1.rmse_v_m_s")
+    (True, False)
+    """
+    base = base_figure(name)
+    return base.endswith(TIMING_SUFFIXES) or (".stage." in base and base.endswith("_s"))
 
 
 def summary_headers(results: dict):
@@ -227,6 +232,36 @@ def plot(results: dict, path) -> None:
         _plot_memory(results, Path(path).with_name(f"{Path(path).stem}_memory.png"))
     if "flow_example.paths" in ser:
         _plot_flow(results, Path(path).with_name(f"{Path(path).stem}_flow.png"))
+    if any(".stage." in name for name in f):
+        _plot_stages(results, Path(path).with_name(f"{Path(path).stem}_stages.png"))
+
+
+def _plot_stages(results: dict, path) -> None:
+    """Time per step of each method split by stage (PF-BP Tables I, II by stage): one stacked
+    bar per method and scenario, the stages of :data:`~phyloc.localization.tracking.loop.STAGES`
+    in the order of a step."""
+    from phyloc.localization.tracking.loop import STAGES
+
+    f, meta = results["figures"], results["meta"]
+    toks, methods = list(meta["scenarios"]), meta["methods"]
+    fig, axes = new_figure(
+        len(toks), 1, squeeze=False, size=(7.0, 0.5 + (0.35 * len(methods) + 0.8) * len(toks))
+    )
+    for j, tok in enumerate(toks):
+        ax = axes[j, 0]
+        left = np.zeros(len(methods))
+        for c, stage in enumerate(STAGES):
+            width = np.array([f.get(f"{m}.{tok}.stage.{stage}_s", 0.0) for m in methods])
+            if np.any(width > 0):
+                ax.barh(methods, width, left=left, color=f"C{c}", label=stage)
+                left += width
+        ax.invert_yaxis()
+        ax.set_xlabel("time per step [s] (each run's median step, mean over runs)")
+        r = range_text(meta["scenarios"][tok]["comm_range_m"])
+        ax.set_title(f"{meta['recipe']}: {tok} (r_max = {r}), time per step by stage", fontsize=9)
+        ax.grid(True, axis="x", alpha=0.3)
+        ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.0, 0.5))
+    save_figure(fig, path)
 
 
 def _plot_flow(results: dict, path) -> None:

@@ -118,7 +118,7 @@ class EDHUpdate(Update):
     def update(self, pred, z_k, anchors_k, rng) -> Belief:
         """Flow the predicted joint particles (PF-BP eq. (1)) from the predicted covariance
         (PF-BP eq. (45)) by every range of the step; weight, resample, UKF covariance."""
-        model = self.model
+        model, clock = self.model, self.clock
         dim, nd = model.dim, model.state_dim
         M, n_ag, _ = pred.particles.shape
         N = n_ag * nd
@@ -131,20 +131,25 @@ class EDHUpdate(Update):
             off_a, off_b, apos, zz = _flow.flow_links(rx, tx, zz, local, n_ag, anchors_k, dim, nd)
             r_var = np.full(zz.size, self._var)
             x_bar = X0.mean(axis=0)
-            X1, _ = _flow.run_flow(  # PF-BP eqs. (42), (43)
-                X0, x_bar, P_pred, off_a, off_b, apos, zz, r_var, dim, N,
-                self._lambdas, self._steps,
-            )  # fmt: skip
-            ll = _flow.stacked_loglik(X1, off_a, off_b, apos, zz, 1.0 / self._var, dim)
-            lw = _flow.invertible_flow_log_weights(X0, X1, x_bar, P_pred, ll)  # PF-BP eq. (44)
-            X = resample_permute(X1, lw, rng)
-            P = _flow.ukf_covariance_update(
-                X.mean(axis=0), P_pred, off_a, off_b, apos, r_var, dim, N
-            )  # PF-BP eq. (49)
+            with clock("flow"):
+                X1, _ = _flow.run_flow(  # PF-BP eqs. (42), (43)
+                    X0, x_bar, P_pred, off_a, off_b, apos, zz, r_var, dim, N,
+                    self._lambdas, self._steps,
+                )  # fmt: skip
+            with clock("weights"):  # PF-BP eq. (44)
+                ll = _flow.stacked_loglik(X1, off_a, off_b, apos, zz, 1.0 / self._var, dim)
+                lw = _flow.invertible_flow_log_weights(X0, X1, x_bar, P_pred, ll)
+            with clock("resample"):
+                X = resample_permute(X1, lw, rng)
+            with clock("covariance"):  # PF-BP eq. (49)
+                P = _flow.ukf_covariance_update(
+                    X.mean(axis=0), P_pred, off_a, off_b, apos, r_var, dim, N
+                )
         if self._Sr is not None:
-            Sr = np.kron(np.eye(n_ag), self._Sr)
-            X = regularize(X, Sr, rng)
-            P = P + Sr
+            with clock("regularize"):
+                Sr = np.kron(np.eye(n_ag), self._Sr)
+                X = regularize(X, Sr, rng)
+                P = P + Sr
         return Belief(particles=X.reshape(M, n_ag, nd), cov=P, joint=True)
 
     def estimate(self, belief):

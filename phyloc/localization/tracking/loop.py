@@ -12,8 +12,8 @@ PF-BP, SIR-BP, SP-BP and the EDH filter share the loop of PF-BP Algorithm 1 over
    those of the previous iteration (extrinsic information approximated by beliefs, PF-BP
    eq. (19)); for the centralized EDH filter, one joint update;
 3. **estimate** (PF-BP eq. (20)) and record: estimates and covariances of every step, the wall
-   time of each step, the agent updates performed, and what one agent sends a neighbour per
-   iteration (:func:`message_floats`).
+   time of each step and of its stages (:class:`StageClock`), the agent updates performed, and
+   what one agent sends a neighbour per iteration (:func:`message_floats`).
 
 :class:`Tracker` runs the loop one step at a time (a closed loop whose next measurements
 depend on the current beliefs, e.g. :mod:`phyloc.control`); :func:`track` runs it over
@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import abc
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,11 +88,63 @@ class Belief:
     joint: bool = False
 
 
+#: The stages a step's wall time is split into (:class:`StageClock`), in the order of a step.
+STAGES = (
+    "predict",  # the motion model (PF-BP eqs. (1), (29), (45)), for every method
+    "sample",  # PF-BP: the neighbours' particles drawn from their Gaussian beliefs
+    "flow",  # PF-BP, EDH: the particle flow (PF-BP eqs. (23)–(27), (42), (43))
+    "weights",  # likelihoods and log weights (PF-BP eqs. (16)–(18), (22), (44))
+    "resample",  # PF-BP, EDH, SIR-BP: systematic resampling
+    "covariance",  # PF-BP, EDH: the UKF covariance (PF-BP eqs. (30), (49)); SP-BP: its update
+    "regularize",  # the kernel of PF-BP eqs. (32), (33)
+    "estimate",  # PF-BP eq. (20)
+    "other",  # the rest of the step: message-passing bookkeeping, link tables, copies
+)
+
+
+class StageClock:
+    """Wall time of the stages of one time step (PF-BP Tables I, II, split by stage).
+
+    A method times a part of its update with ``with clock("flow"): …``; :meth:`take` returns
+    the seconds per stage since the last call. Stage names are those of :data:`STAGES`.
+
+    Examples
+    --------
+    >>> clock = StageClock()
+    >>> with clock("flow"):
+    ...     pass
+    >>> with clock("flow"):
+    ...     pass
+    >>> seconds = clock.take()
+    >>> list(seconds), seconds["flow"] >= 0.0, clock.take()
+    (['flow'], True, {})
+    """
+
+    def __init__(self):
+        self._seconds: dict[str, float] = {}
+
+    @contextmanager
+    def __call__(self, stage: str):
+        if stage not in STAGES:
+            raise ValidationError("stage", stage, f"one of {STAGES}")
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self._seconds[stage] = self._seconds.get(stage, 0.0) + time.perf_counter() - t0
+
+    def take(self) -> dict[str, float]:
+        """The seconds per stage timed since the last call; the clock starts again at zero."""
+        seconds, self._seconds = self._seconds, {}
+        return seconds
+
+
 class Update(abc.ABC):
     """What a tracker supplies to the loop: its beliefs at time 0 and its update of one step.
 
     Subclasses set :attr:`label` (and :attr:`distributed`) and implement :meth:`initial`,
-    :meth:`update`, :meth:`estimate` and :meth:`floats_per_link_iteration`.
+    :meth:`update`, :meth:`estimate` and :meth:`floats_per_link_iteration`; they may time parts
+    of :meth:`update` with :attr:`clock` (what they leave untimed counts as ``"other"``).
 
     Parameters
     ----------
@@ -111,6 +164,8 @@ class Update(abc.ABC):
         if not isinstance(model, RangeModel):
             raise ValidationError("model", type(model).__name__, "must be a RangeModel")
         self.model, self.options = model, options
+        #: :class:`StageClock` of the current step.
+        self.clock = StageClock()
 
     @property
     def iterations(self) -> int:
@@ -152,6 +207,9 @@ class Tracker:
     ----------
     belief : Belief
         The current beliefs; :attr:`particles`, :attr:`mean`, :attr:`cov` are its fields.
+    stage_s : dict
+        Seconds per stage of the last :meth:`step` (:data:`STAGES`; ``"other"`` the part of
+        the step no stage timed).
     """
 
     def __init__(self, update: Update, prior: GaussianPrior, rng):
@@ -160,6 +218,7 @@ class Tracker:
         mean0, cov0 = check_prior(prior, update.model)
         self.update, self.model, self.options, self.rng = update, update.model, update.options, rng
         self.belief = update.initial(mean0, cov0, rng)
+        self.stage_s: dict[str, float] = {}
         self._joint = None
         if self.belief.joint:  # PF-BP eqs. (46), (47)
             F, Q = self.model.matrices()
@@ -201,10 +260,19 @@ class Tracker:
     def step(self, z_k: np.ndarray, anchors_k: np.ndarray):
         """Predict and update by one step's ranges ``z_k [n_agents, n_agents + n_anchors]``
         with anchors at ``anchors_k [n_anchors, dim]``; returns ``(mean, cov)`` (new arrays,
-        :meth:`Update.estimate`)."""
-        pred = self.predict(self.belief)
+        :meth:`Update.estimate`); :attr:`stage_s` gets the step's seconds per stage."""
+        clock = self.update.clock
+        clock.take()
+        t0 = time.perf_counter()
+        with clock("predict"):
+            pred = self.predict(self.belief)
         self.belief = self.update.update(pred, z_k, anchors_k, self.rng)
-        return self.update.estimate(self.belief)
+        with clock("estimate"):
+            out = self.update.estimate(self.belief)
+        stages = clock.take()
+        stages["other"] = max(time.perf_counter() - t0 - sum(stages.values()), 0.0)
+        self.stage_s = stages
+        return out
 
 
 def track(measurements: RangeMeasurements, prior: GaussianPrior, rng, update: Update) -> Result:
@@ -226,7 +294,9 @@ def track(measurements: RangeMeasurements, prior: GaussianPrior, rng, update: Up
         ``particles [n_agents, M, N_D]`` (joint particles split by agent) with uniform
         ``log_weights``, or None; ``timing.step_s`` per step, ``agent_s = step_s / n_agents``
         (NaN when not distributed), ``agent_iterations = K · U · n_agents``;
-        ``diagnostics["floats_per_link_iteration"]``; ``label = update.label``.
+        ``diagnostics["floats_per_link_iteration"]``; ``diagnostics["stage_s"]``, the seconds
+        of each stage of :data:`STAGES` the method has in each step (``{stage: [K]}``, summing
+        to ``timing.step_s`` up to the clock's own cost); ``label = update.label``.
     """
     t_start = time.perf_counter()
     check_inputs(measurements, prior)
@@ -235,11 +305,14 @@ def track(measurements: RangeMeasurements, prior: GaussianPrior, rng, update: Up
     out_mean = np.empty((K, n_ag, nd))
     out_cov = np.empty((K, n_ag, nd, nd))
     step_s = np.empty(K)
+    stage_s: dict[str, np.ndarray] = {}
     for k in range(K):
         z_k, anchors_k = measurements.z[k], measurements.anchors_at(k)
         t0 = time.perf_counter()
         out_mean[k], out_cov[k] = tracker.step(z_k, anchors_k)
         step_s[k] = time.perf_counter() - t0
+        for stage, seconds in tracker.stage_s.items():
+            stage_s.setdefault(stage, np.zeros(K))[k] = seconds
     agent_s = step_s / n_ag if update.distributed else np.full(K, np.nan)
     timing = Timing(time.perf_counter() - t_start, step_s, agent_s, K * update.iterations * n_ag)
     particles, log_weights = tracker.particles, None
@@ -253,7 +326,10 @@ def track(measurements: RangeMeasurements, prior: GaussianPrior, rng, update: Up
         timing,
         particles=particles,
         log_weights=log_weights,
-        diagnostics={"floats_per_link_iteration": update.floats_per_link_iteration()},
+        diagnostics={
+            "floats_per_link_iteration": update.floats_per_link_iteration(),
+            "stage_s": {stage: stage_s[stage] for stage in STAGES if stage in stage_s},
+        },
         label=update.label,
     )
 

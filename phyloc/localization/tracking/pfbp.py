@@ -208,7 +208,8 @@ class PFBPUpdate(Update):
             # each broadcast belief's Cholesky factor once, not once per receiving agent
             if self.options.exchange != "gaussian":
                 return None
-            return chi.mean(axis=1), np.stack([_flow.robust_cholesky(c) for c in P_bel])
+            with self.clock("sample"):
+                return chi.mean(axis=1), np.stack([_flow.robust_cholesky(c) for c in P_bel])
 
         def agent(i, chi, P_bel, means):
             return self._agent_update(i, z_k, anchors_k, X0, P_pred, chi, P_bel, rng, means)
@@ -231,7 +232,7 @@ class PFBPUpdate(Update):
         (mean, Cholesky factor of ``P_bel``) per agent (``exchange = "gaussian"``) the
         neighbours' particles are drawn here from ``N(mean_j, P_bel[j])``: ``chi[j]`` itself is
         not read."""
-        model, opt, var, Sr = self.model, self.options, self._var, self._Sr
+        model, opt, var, Sr, clock = self.model, self.options, self._var, self._Sr, self.clock
         dim, nd, n_ag = model.dim, model.state_dim, X0.shape[0]
         rx, tx, zz, partners = agent_measurements(z_k, i, opt.factors)
         if zz.size == 0:
@@ -244,26 +245,33 @@ class PFBPUpdate(Update):
             if means is None or partners.size == 0:
                 nb = [chi[j] for j in partners]
             else:  # PF-BP §VI: sample the neighbours' Gaussian beliefs locally
-                mu, L = means[0][partners], means[1][partners]
-                w = rng.standard_normal((partners.size, X0.shape[1], nd))
-                nb = list(mu[:, None, :] + np.einsum("aij,anj->ani", L, w))
+                with clock("sample"):
+                    mu, L = means[0][partners], means[1][partners]
+                    w = rng.standard_normal((partners.size, X0.shape[1], nd))
+                    nb = list(mu[:, None, :] + np.einsum("aij,anj->ani", L, w))
             beta = np.concatenate([X0[i], *nb], axis=1)  # PF-BP eq. (21)
             P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # PF-BP eq. (28)
             beta_bar = beta.mean(axis=0)
             r_var = np.full(zz.size, var)
-            B1, _ = _flow.run_flow(  # PF-BP eqs. (21), (23)–(27)
-                beta, beta_bar, P_t, off_a, off_b, apos, zz, r_var, dim, nd,
-                self._lambdas, self._steps,
-            )  # fmt: skip
-            ll = _flow.stacked_loglik(B1, off_a, off_b, apos, zz, 1.0 / var, dim)
-            lw = _flow.invertible_flow_log_weights(X0[i], B1[:, :nd], beta_bar[:nd], P_pred[i], ll)
-            xi = resample_permute(B1[:, :nd], lw, rng)  # PF-BP eq. (22), line 13
-            at = np.concatenate([xi.mean(axis=0), beta_bar[nd:]])
-            # PF-BP eq. (30)
-            Pi = _flow.ukf_covariance_update(at, P_t, off_a, off_b, apos, r_var, dim, nd)
+            with clock("flow"):
+                B1, _ = _flow.run_flow(  # PF-BP eqs. (21), (23)–(27)
+                    beta, beta_bar, P_t, off_a, off_b, apos, zz, r_var, dim, nd,
+                    self._lambdas, self._steps,
+                )  # fmt: skip
+            with clock("weights"):
+                ll = _flow.stacked_loglik(B1, off_a, off_b, apos, zz, 1.0 / var, dim)
+                lw = _flow.invertible_flow_log_weights(
+                    X0[i], B1[:, :nd], beta_bar[:nd], P_pred[i], ll
+                )
+            with clock("resample"):
+                xi = resample_permute(B1[:, :nd], lw, rng)  # PF-BP eq. (22), line 13
+            with clock("covariance"):  # PF-BP eq. (30)
+                at = np.concatenate([xi.mean(axis=0), beta_bar[nd:]])
+                Pi = _flow.ukf_covariance_update(at, P_t, off_a, off_b, apos, r_var, dim, nd)
         if Sr is not None:  # PF-BP eq. (33), line 16
-            xi = regularize(xi, Sr, rng)
-            Pi = Pi + Sr
+            with clock("regularize"):
+                xi = regularize(xi, Sr, rng)
+                Pi = Pi + Sr
         return xi, Pi
 
 

@@ -181,16 +181,19 @@ class SIRBPUpdate(Update):
         def agent(i, _chi, chi_pos):
             rx, tx, zz, _ = agent_measurements(z_k, i, self.options.factors)
             lw = np.zeros(M)
-            for a, b, zq in zip(rx, tx, zz, strict=True):
-                other = b if a == i else a  # the node that is not i
-                if other >= n_ag:
-                    y = anchors_k[other - n_ag][None]  # PF-BP eq. (16)
-                else:
-                    y = chi_pos[other]  # belief of j at u − 1, PF-BP eqs. (17)–(19)
-                _flow.paired_range_loglik_kernel(pos0[i], y, float(zq), self._inv_var, lw)
+            with self.clock("weights"):
+                for a, b, zq in zip(rx, tx, zz, strict=True):
+                    other = b if a == i else a  # the node that is not i
+                    if other >= n_ag:
+                        y = anchors_k[other - n_ag][None]  # PF-BP eq. (16)
+                    else:
+                        y = chi_pos[other]  # belief of j at u − 1, PF-BP eqs. (17)–(19)
+                    _flow.paired_range_loglik_kernel(pos0[i], y, float(zq), self._inv_var, lw)
             if zz.size:  # resampling, then the jitter of PF-BP eq. (32), jittered block only
-                return (resample_permute(X0[i], lw, rng, Sr),)
-            return (X0[i] if Sr is None else regularize(X0[i], Sr, rng),)
+                with self.clock("resample"):
+                    return (resample_permute(X0[i], lw, rng, Sr),)
+            with self.clock("regularize"):
+                return (X0[i] if Sr is None else regularize(X0[i], Sr, rng),)
 
         (chi,) = message_passing(self.options.n_iterations, (X0,), agent, share)
         return Belief(particles=chi)

@@ -256,7 +256,8 @@ class SPBPUpdate(Update):
         beta = np.concatenate([x_pred[i]] + [x_bel[j] for j in partners])  # β̄
         P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # as PF-BP eq. (28)
         r_var = np.full(zz.size, self._var)
-        return unscented_range_update(beta, P_t, off_a, off_b, apos, zz, r_var, dim, nd)
+        with self.clock("covariance"):
+            return unscented_range_update(beta, P_t, off_a, off_b, apos, zz, r_var, dim, nd)
 
 
 class SPBPTracker(Tracker):
