@@ -152,3 +152,77 @@ def test_spbp_tracks_and_pfbp_is_more_accurate_at_k10():
     assert np.all(rmse_sp[4:] < 100.0 * bound[4:]), (rmse_sp, bound)  # it does track
     assert rmse_sp[-1] < 0.2 * rmse_sp[0]
     assert rmse_pf[-1] < 0.5 * rmse_sp[-1], (rmse_pf, rmse_sp)  # PF-BP more accurate at k = 10
+
+
+def _stacked_problem(rng, n=27, dim=3, scale=1.0):
+    A0 = rng.normal(size=(n, n))
+    P = (A0 @ A0.T / n + np.eye(n)) * scale**2
+    mean = rng.normal(size=n) * 5
+    off_a = np.zeros(4, np.int64)
+    off_b = np.array([9, 18, -1, -1], np.int64)
+    anchors = rng.normal(size=(4, dim)) * 10
+    return mean, P, off_a, off_b, anchors
+
+
+def test_scaled_transform_with_alpha_one_is_the_cubature_rule(rng):
+    """(α, β, κ) = (1, 0, 0): λ = 0, the centre point weighs nothing and the others sit at
+    ``±√n L_j`` with weights ``1/(2n)``: the cubature rule, mean and covariance."""
+    mean, P, off_a, off_b, anchors = _stacked_problem(rng)
+    z, r_var = rng.uniform(3, 9, 4), np.full(4, 0.01)
+    ref = unscented_range_update(mean, P, off_a, off_b, anchors, z, r_var, 3, 9)
+    got = unscented_range_update(mean, P, off_a, off_b, anchors, z, r_var, 3, 9, (1.0, 0.0, 0.0))
+    np.testing.assert_allclose(got[0], ref[0], rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(got[1], ref[1], rtol=1e-10, atol=1e-10)
+
+
+@pytest.mark.parametrize("scaled", [None, (1e-3, 2.0, 0.0), (0.5, 2.0, 1.0)])
+def test_both_rules_are_the_kalman_update_of_a_linear_range(rng, scaled):
+    """An anchor 100 km away: its range is linear in the state over the sigma points (the
+    curvature and the rounding of 10⁵ m ranges under weights up to 3·10⁴ stay below 10⁻⁵), so
+    every rule gives the Kalman filter's update with ``H`` the unit vector from the anchor
+    (closed form). Weights not summing to one would shift the predicted range by ~10⁵ m."""
+    n, dim = 18, 3
+    mean, P, _, _, _ = _stacked_problem(rng, n=n, scale=0.3)
+    u = rng.normal(size=dim)
+    u /= np.linalg.norm(u)
+    anchor = mean[:dim] - 1e5 * u
+    off_a, off_b = np.zeros(1, np.int64), np.full(1, -1, np.int64)
+    z, r_var = np.array([1e5 + 0.7]), np.array([0.04])
+    m1, P1 = unscented_range_update(mean, P, off_a, off_b, anchor[None], z, r_var, dim, n, scaled)
+    H = np.zeros(n)
+    H[:dim] = u
+    S = H @ P @ H + r_var[0]
+    K = P @ H / S
+    np.testing.assert_allclose(m1, mean + K * 0.7, atol=2e-5)
+    np.testing.assert_allclose(P1, P - np.outer(K, K) * S, atol=2e-5)
+
+
+def test_scaled_points_stay_finite_under_the_paper_prior(rng):
+    """A 45-D stacked state (five agents) with the 20 m position prior of PF-BP eq. (31): the
+    centre weight is about −10⁶, yet mean and covariance are finite, symmetric and PSD."""
+    n, dim = 45, 3
+    diag = np.tile(np.r_[np.full(3, 400.0), np.full(3, 0.0225), np.full(3, 2.25)], 5)
+    P = np.diag(diag)
+    mean = np.zeros(n)
+    mean[0:45:9] = rng.uniform(0, 20, 5)
+    off_a = np.zeros(13, np.int64)
+    off_b = np.r_[np.array([9, 18, 27, 36]), np.full(9, -1)].astype(np.int64)
+    anchors = rng.uniform(0, 20, (13, dim))
+    z = rng.uniform(1, 30, 13)
+    m1, P1 = unscented_range_update(
+        mean, P, off_a, off_b, anchors, z, np.full(13, 0.01), dim, 9, (1e-3, 2.0, 0.0)
+    )
+    assert np.all(np.isfinite(m1)) and np.all(np.isfinite(P1))
+    np.testing.assert_array_equal(P1, P1.T)
+    assert np.linalg.eigvalsh(P1).min() > -1e-9 * np.abs(P1).max()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [({"sigma_points": "unscented"}, "sigma_points"), ({"ut_alpha": 0.0}, "ut_alpha"),
+     ({"ut_kappa": -1.0}, "ut_kappa")],
+)  # fmt: skip
+def test_bad_sigma_point_options_name_their_key(kwargs, field):
+    with pytest.raises(ValidationError) as err:
+        SPBPOptions(**kwargs)
+    assert err.value.field == field

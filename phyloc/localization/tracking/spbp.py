@@ -22,10 +22,17 @@ holds a Gaussian belief ``N(x̂_i, P_i)``. Per time step:
 Steps 1 and 3 are the family's loop (:func:`~phyloc.localization.tracking.loop.track`); this
 module supplies :class:`SPBPUpdate`, step 2.
 
-The sigma points are those of the PF-BP UKF covariance step
-(:func:`~phyloc.localization.tracking._flow.ukf_covariance_update`, PF-BP eq. (30)):
-``β̄ ± √n L_j`` with ``L Lᵀ = P̃_i`` (Cholesky), weights ``1/(2n)``, no centre point (Julier's
-κ = 0), so the covariance update is the Schur complement of a PSD matrix and stays PSD.
+The sigma points (``sigma_points``) are by default those of the PF-BP UKF covariance step
+(:func:`~phyloc.localization.tracking._flow.ukf_covariance_update`, PF-BP eq. (30)), the
+cubature rule: ``β̄ ± √n L_j`` with ``L Lᵀ = P̃_i`` (Cholesky), weights ``1/(2n)``, no centre
+point (Julier's κ = 0), so the covariance update is the Schur complement of a PSD matrix and
+stays PSD. ``"scaled"`` is the scaled unscented transform of the UKF reference the PF-BP paper
+cites for its UKF steps (Wan and van der Merwe): ``2n + 1`` points ``β̄``,
+``β̄ ± √(n + λ) L_j`` with ``λ = α²(n + κ) − n``, mean weights ``λ/(n + λ)`` (centre) and
+``1/(2(n + λ))``, the centre's covariance weight raised by ``1 − α² + β`` (defaults
+``α = 10⁻³``, ``β = 2``, ``κ = 0``). The two differ by far when the prior is wide: with the
+20 m prior of PF-BP §VI and a 45-D stacked state the cubature points lie ``√45 σ_p ≈ 134 m``
+from the mean, the scaled ones ``α √45 σ_p ≈ 0.13 m``.
 Measurements follow ``factors`` as in PF-BP (distributed: PF-BP eq. (17);
 centralized: PF-BP eq. (18)). An agent without measurements keeps its prediction. Optional
 regularization adds ``Σ_r`` (PF-BP eq. (32)) to every updated covariance, as PF-BP §VI does for
@@ -38,6 +45,8 @@ PF-BP: L. Wielandner, E. Leitinger, F. Meyer and K. Witrisal, "Message passing-b
 cooperative localization and navigation with embedded particle flow."
 SP-BP: F. Meyer, O. Hlinka and F. Hlawatsch, "Sigma point belief propagation," IEEE Signal
 Processing Letters 21(2), pp. 145–149, 2014.
+UKF: E. Wan and R. van der Merwe, "The unscented Kalman filter for nonlinear estimation," Proc.
+IEEE Adaptive Systems for Signal Processing, Communications, and Control Symposium, 2000.
 """
 
 from __future__ import annotations
@@ -69,6 +78,9 @@ from phyloc.localization.tracking.measurements import (
 )
 from phyloc.localization.tracking.priors import GaussianPrior
 
+#: The sigma-point rules of :class:`SPBPOptions`.
+SIGMA_POINTS = ("cubature", "scaled")
+
 
 @dataclass(frozen=True)
 class SPBPOptions:
@@ -85,6 +97,11 @@ class SPBPOptions:
         (off).
     reg_std_vel, reg_std_acc : float
         σ_r,vel [m/s], σ_r,acc [m/s²] of PF-BP eq. (32) (0.15).
+    sigma_points : {"cubature", "scaled"}
+        The cubature rule of PF-BP eq. (30) as phyloc computes it (default), or the scaled
+        unscented transform of the UKF reference (module docstring).
+    ut_alpha, ut_beta, ut_kappa : float
+        α > 0, β ≥ 0, κ ≥ 0 of ``"scaled"`` (10⁻³, 2, 0: the reference's usual values).
     """
 
     n_iterations: int = 2
@@ -92,6 +109,10 @@ class SPBPOptions:
     regularize: bool = False
     reg_std_vel: float = 0.15
     reg_std_acc: float = 0.15
+    sigma_points: str = "cubature"
+    ut_alpha: float = 1e-3
+    ut_beta: float = 2.0
+    ut_kappa: float = 0.0
 
     def __post_init__(self):
         object.__setattr__(
@@ -99,8 +120,20 @@ class SPBPOptions:
         )
         if self.factors not in FACTORS:
             raise ValidationError("factors", self.factors, f"must be one of {FACTORS}")
-        for name in ("reg_std_vel", "reg_std_acc"):
+        if self.sigma_points not in SIGMA_POINTS:
+            raise ValidationError(
+                "sigma_points", self.sigma_points, f"must be one of {SIGMA_POINTS}"
+            )
+        for name in ("reg_std_vel", "reg_std_acc", "ut_beta", "ut_kappa"):
             object.__setattr__(self, name, v.positive(name, getattr(self, name), allow_zero=True))
+        object.__setattr__(self, "ut_alpha", v.positive("ut_alpha", self.ut_alpha))
+
+    @property
+    def unscented(self) -> tuple[float, float, float] | None:
+        """``(α, β, κ)`` of the scaled unscented transform, or None for the cubature rule."""
+        if self.sigma_points == "cubature":
+            return None
+        return self.ut_alpha, self.ut_beta, self.ut_kappa
 
     @classmethod
     def from_dict(cls, d: dict, section: str = "localization") -> SPBPOptions:
@@ -108,7 +141,7 @@ class SPBPOptions:
         return from_table(cls, d, section)
 
 
-def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_out):
+def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_out, scaled=None):
     """Unscented update of a stacked Gaussian by range measurements; the leading block.
 
     Parameters
@@ -127,22 +160,24 @@ def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_o
     dim : int
     n_out : int
         Size of the leading block returned.
+    scaled : (α, β, κ), optional
+        The scaled unscented transform (module docstring) instead of the cubature rule.
 
     Returns
     -------
     mean_out : [n_out] float64
     cov_out : [n_out, n_out] float64
-        Equal to :func:`~phyloc.localization.tracking._flow.ukf_covariance_update` (same sigma
-        points).
+        With the cubature rule equal to
+        :func:`~phyloc.localization.tracking._flow.ukf_covariance_update` (same sigma points).
     """
+    if scaled is not None:
+        return _scaled_range_update(
+            mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_out, *scaled
+        )
     n = mean.size
     L = _flow.robust_cholesky(P) * np.sqrt(n)
     pts = np.concatenate([mean + L.T, mean - L.T])  # [2n, n]
-    Z = np.empty((2 * n, off_a.size))
-    for q in range(off_a.size):
-        pa = pts[:, off_a[q] : off_a[q] + dim]
-        pb = pts[:, off_b[q] : off_b[q] + dim] if off_b[q] >= 0 else anchor_pos[q]
-        Z[:, q] = np.linalg.norm(pa - pb, axis=1)
+    Z = _range_values(pts, off_a, off_b, anchor_pos, dim)
     z_bar = Z.mean(axis=0)
     dz = Z - z_bar
     dx = pts[:, :n_out] - mean[:n_out]
@@ -150,6 +185,41 @@ def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_o
     Pzz = w * dz.T @ dz + np.diag(r_var)
     Pxz = w * dx.T @ dz
     G = np.linalg.solve(Pzz, Pxz.T).T  # gain, Pzz symmetric
+    m_out = mean[:n_out] + G @ (z - z_bar)
+    c_out = P[:n_out, :n_out] - G @ Pxz.T
+    return m_out, 0.5 * (c_out + c_out.T)
+
+
+def _range_values(pts, off_a, off_b, anchor_pos, dim):
+    """The ranges ``[points, L]`` of sigma points ``pts [points, n]``."""
+    Z = np.empty((pts.shape[0], off_a.size))
+    for q in range(off_a.size):
+        pa = pts[:, off_a[q] : off_a[q] + dim]
+        pb = pts[:, off_b[q] : off_b[q] + dim] if off_b[q] >= 0 else anchor_pos[q]
+        Z[:, q] = np.linalg.norm(pa - pb, axis=1)
+    return Z
+
+
+def _scaled_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_out, a, b, k):
+    """:func:`unscented_range_update` with the scaled unscented transform (α, β, κ) = (a, b, k)
+    (Wan and van der Merwe): a centre point and ``±√(n + λ) L_j``."""
+    n = mean.size
+    lam = a * a * (n + k) - n
+    L = _flow.robust_cholesky(P) * np.sqrt(n + lam)
+    pts = np.concatenate([mean[None], mean + L.T, mean - L.T])  # [2n + 1, n]
+    wm = np.full(2 * n + 1, 0.5 / (n + lam))
+    wm[0] = lam / (n + lam)
+    wc = wm.copy()
+    wc[0] += 1.0 - a * a + b
+    Z = _range_values(pts, off_a, off_b, anchor_pos, dim)
+    D = Z - Z[0]  # about the centre first: the weights reach ±10⁶ and would cancel the ranges
+    d_bar = wm @ D
+    z_bar = Z[0] + d_bar
+    dz = D - d_bar
+    dx = pts[:, :n_out] - mean[:n_out]
+    Pzz = (wc[:, None] * dz).T @ dz + np.diag(r_var)
+    Pxz = (wc[:, None] * dx).T @ dz
+    G = np.linalg.solve(Pzz, Pxz.T).T
     m_out = mean[:n_out] + G @ (z - z_bar)
     c_out = P[:n_out, :n_out] - G @ Pxz.T
     return m_out, 0.5 * (c_out + c_out.T)
@@ -257,7 +327,9 @@ class SPBPUpdate(Update):
         P_t = block_diag(P_pred[i], *[P_bel[j] for j in partners])  # as PF-BP eq. (28)
         r_var = np.full(zz.size, self._var)
         with self.clock("covariance"):
-            return unscented_range_update(beta, P_t, off_a, off_b, apos, zz, r_var, dim, nd)
+            return unscented_range_update(
+                beta, P_t, off_a, off_b, apos, zz, r_var, dim, nd, self.options.unscented
+            )
 
 
 class SPBPTracker(Tracker):
