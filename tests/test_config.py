@@ -65,6 +65,15 @@ def test_every_shipped_recipe_validates(path):
     validate_recipe(recipe)  # the experiment's own prepare, full and fast, or generate's check
 
 
+def test_every_shipped_recipe_is_in_the_docs_recipe_table():
+    """A recipe a user can run is one the guide's table names (``docs/guide/experiments.rst``)."""
+    from pathlib import Path
+
+    table = (Path(__file__).resolve().parents[1] / "docs/guide/experiments.rst").read_text()
+    missing = [p.name for p in _shipped_recipes() if f"``{p.name}``" not in table]
+    assert not missing, f"add to the recipe table of docs/guide/experiments.rst: {missing}"
+
+
 def test_kind_is_checked_against_the_registry():
     """The evaluation layer's loader names every registered kind; the low-level loader takes any
     kind name and leaves the check to the command that runs it."""
