@@ -432,11 +432,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def redeliver_lost_interrupts(unraisable) -> None:
+    """``sys.unraisablehook`` that does not lose Ctrl-C: a KeyboardInterrupt raised while Python
+    ran a finalizer or weakref callback is only printed ("Exception ignored in …") and the
+    command would go on; it is raised again in the main thread instead (after 50 ms, outside
+    the callback). Everything else goes to Python's own hook."""
+    if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+        import _thread
+        import threading
+
+        threading.Timer(0.05, _thread.interrupt_main).start()
+        return
+    sys.__unraisablehook__(unraisable)
+
+
 def main(argv=None) -> int:
     """Entry point of the console script; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
     args.parse_args = parser.parse_args  # a command that runs others (quickstart) parses theirs
+    previous_hook, sys.unraisablehook = sys.unraisablehook, redeliver_lost_interrupts
+    try:
+        return _run(args)
+    finally:
+        sys.unraisablehook = previous_hook
+
+
+def _run(args) -> int:
+    """Run the parsed command; every error a user can cause is one line and an exit status."""
     try:
         return int(args.func(args) or 0)
     except PhylocError as exc:

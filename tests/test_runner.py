@@ -3,6 +3,7 @@
 import logging
 
 import numpy as np
+import pytest
 
 from phyloc.parallel import run_tasks, task_seeds
 
@@ -250,3 +251,33 @@ def test_a_first_run_says_that_it_compiles(tmp_path, monkeypatch, capsys):
 
 def _square(x, seed_seq):
     return x * x
+
+
+def test_ctrl_c_inside_a_weakref_callback_is_not_lost():
+    """Python only prints a KeyboardInterrupt raised inside a finalizer or weakref callback
+    ("Exception ignored in …") and goes on; with phyloc's hook installed (as ``phyloc.cli``
+    does for every command) it reaches the main thread again, so Ctrl-C still stops the
+    command. Without the hook the loop below would run to its end."""
+    import sys
+    import time
+    import weakref
+
+    from phyloc.cli import redeliver_lost_interrupts
+
+    class Node:
+        pass
+
+    def on_collect(_ref):
+        raise KeyboardInterrupt  # Ctrl-C arriving while the callback runs
+
+    previous, sys.unraisablehook = sys.unraisablehook, redeliver_lost_interrupts
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            node = Node()
+            ref = weakref.ref(node, on_collect)  # noqa: F841
+            del node  # the callback runs here; its KeyboardInterrupt is "ignored"
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline:  # the command going on
+                time.sleep(0.01)
+    finally:
+        sys.unraisablehook = previous
