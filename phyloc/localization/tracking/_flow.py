@@ -359,6 +359,17 @@ def invertible_flow_log_weights(X0, X1, mean0, cov0, loglik1):
     return gaussian_logpdf(X1, mean0, cov0) - gaussian_logpdf(X0, mean0, cov0) + loglik1
 
 
+def sigma_point_ranges(pts, off_a, off_b, anchor_pos, dim):
+    """The ranges ``[points, L]`` of measurements ``q`` (as in :func:`run_flow`) at the sigma
+    points ``pts [points, n]``."""
+    Z = np.empty((pts.shape[0], off_a.size))
+    for q in range(off_a.size):
+        pa = pts[:, off_a[q] : off_a[q] + dim]
+        pb = pts[:, off_b[q] : off_b[q] + dim] if off_b[q] >= 0 else anchor_pos[q]
+        Z[:, q] = np.linalg.norm(pa - pb, axis=1)
+    return Z
+
+
 def ukf_covariance_update(mean, P, off_a, off_b, anchor_pos, r_var, dim, n_out):
     """UKF posterior covariance of the first ``n_out`` components (PF-BP eqs. (30), (49)).
 
@@ -369,11 +380,7 @@ def ukf_covariance_update(mean, P, off_a, off_b, anchor_pos, r_var, dim, n_out):
     n = mean.size
     L = robust_cholesky(P) * np.sqrt(n)
     pts = np.concatenate([mean + L.T, mean - L.T])  # [2n, n]
-    Z = np.empty((2 * n, off_a.size))
-    for q in range(off_a.size):
-        pa = pts[:, off_a[q] : off_a[q] + dim]
-        pb = pts[:, off_b[q] : off_b[q] + dim] if off_b[q] >= 0 else anchor_pos[q]
-        Z[:, q] = np.linalg.norm(pa - pb, axis=1)
+    Z = sigma_point_ranges(pts, off_a, off_b, anchor_pos, dim)
     dz = Z - Z.mean(axis=0)
     dx = pts[:, :n_out] - mean[:n_out]
     w = 1.0 / (2 * n)

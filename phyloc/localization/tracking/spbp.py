@@ -177,7 +177,7 @@ def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_o
     n = mean.size
     L = _flow.robust_cholesky(P) * np.sqrt(n)
     pts = np.concatenate([mean + L.T, mean - L.T])  # [2n, n]
-    Z = _range_values(pts, off_a, off_b, anchor_pos, dim)
+    Z = _flow.sigma_point_ranges(pts, off_a, off_b, anchor_pos, dim)
     z_bar = Z.mean(axis=0)
     dz = Z - z_bar
     dx = pts[:, :n_out] - mean[:n_out]
@@ -188,16 +188,6 @@ def unscented_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_o
     m_out = mean[:n_out] + G @ (z - z_bar)
     c_out = P[:n_out, :n_out] - G @ Pxz.T
     return m_out, 0.5 * (c_out + c_out.T)
-
-
-def _range_values(pts, off_a, off_b, anchor_pos, dim):
-    """The ranges ``[points, L]`` of sigma points ``pts [points, n]``."""
-    Z = np.empty((pts.shape[0], off_a.size))
-    for q in range(off_a.size):
-        pa = pts[:, off_a[q] : off_a[q] + dim]
-        pb = pts[:, off_b[q] : off_b[q] + dim] if off_b[q] >= 0 else anchor_pos[q]
-        Z[:, q] = np.linalg.norm(pa - pb, axis=1)
-    return Z
 
 
 def _scaled_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_out, a, b, k):
@@ -211,7 +201,7 @@ def _scaled_range_update(mean, P, off_a, off_b, anchor_pos, z, r_var, dim, n_out
     wm[0] = lam / (n + lam)
     wc = wm.copy()
     wc[0] += 1.0 - a * a + b
-    Z = _range_values(pts, off_a, off_b, anchor_pos, dim)
+    Z = _flow.sigma_point_ranges(pts, off_a, off_b, anchor_pos, dim)
     D = Z - Z[0]  # about the centre first: the weights reach ±10⁶ and would cancel the ranges
     d_bar = wm @ D
     z_bar = Z[0] + d_bar
