@@ -227,7 +227,7 @@ def test_files_load_and_name_their_tables(name):
     assert load_scenario(name + "_los").forced == "los"
 
 
-@pytest.mark.parametrize(("key", "ref"), list(TABLE.items()), ids=lambda x: str(x))
+@pytest.mark.parametrize(("key", "ref"), list(TABLE.items()), ids=["-".join(k) for k in TABLE])
 def test_file_values_equal_second_transcription(key, ref):
     name, cond = key
     par = load_scenario(name).params(cond)
