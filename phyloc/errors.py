@@ -29,7 +29,9 @@ class ValidationError(PhylocError, ValueError):
 
 def _short(value) -> str:
     """The value as the message shows it: one line (strings with control characters or
-    surrounding blanks in quotes, as repr shows them), at most 80 characters."""
+    surrounding blanks in quotes, as repr shows them). Plain text keeps up to 240 characters,
+    so that a path the user gave is shown whole; anything else is cut at 80."""
     plain = isinstance(value, str) and value.isprintable() and value.strip() == value and value
     text = value if plain else repr(value)
-    return text if len(text) <= 80 else text[:77] + "..."
+    limit = 240 if plain else 80
+    return text if len(text) <= limit else text[: limit - 3] + "..."

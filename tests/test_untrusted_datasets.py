@@ -10,6 +10,7 @@ import h5py
 import pytest
 
 from phyloc.cli import main
+from phyloc.errors import ValidationError
 
 RECIPE = (
     'kind = "dataset"\nname = "d"\nseed = 3\n[system]\nn_subcarriers = 65\n'
@@ -84,6 +85,24 @@ def test_a_recipe_cannot_name_a_scenario_file_outside_its_folder(tmp_path, capsy
     assert sorted(p.name for p in folder.iterdir()) == sorted(
         ["r.toml", *(["chan.toml"] if where == "link" else [])]
     )
+
+
+def test_the_refusal_shows_a_long_path_whole_and_cuts_other_values(tmp_path, capsys):
+    deep = tmp_path / ("d" * 60) / ("e" * 60)
+    deep.mkdir(parents=True)
+    outside = deep / "secret.toml"
+    outside.write_text("secret = 1\n")
+    folder = tmp_path / "given"
+    folder.mkdir()
+    recipe = _recipe_naming(folder, str(outside))
+    assert len(str(outside)) > 80
+    assert main(["generate", str(recipe), "-o", str(folder / "d.h5")]) == 2
+    assert str(outside) in _one_line(capsys)
+    # a value that is not plain text (here a list) is cut at 80 characters
+    with pytest.raises(ValidationError) as err:
+        raise ValidationError("x", list(range(100)), "less")
+    shown = str(err.value).split(" = ", 1)[1].split(" is not allowed")[0]
+    assert len(shown) == 80 and shown.endswith("...")
 
 
 def test_a_scenario_file_next_to_the_recipe_is_read_from_there(tmp_path, capsys, monkeypatch):
