@@ -60,6 +60,7 @@ n_particles = 100
 [experiment]
 methods = ["dipnet", "dpe_sampled", "corr2"]
 particles_snapshot = 2
+max_snapshots = 9
 
 [experiment.runs.a.network]
 agents_m = [[10.0, 10.0], [20.0, 10.0], [15.0, 18.0], [5.0, 25.0]]
@@ -263,6 +264,20 @@ def test_replica_recipe_geometry():
         (("[localization.corr2]", "[experiment.variants.corr2]"), "experiment.variants"),
         (("[experiment.runs.a.network]", "[experiment.runs.a.net]"), "experiment.runs.a"),
         (("speeds_m_s = [1.0]", "speeds_m_s = [-1.0]"), "speeds_m_s"),
+        (
+            (
+                TINY[TINY.index("[experiment.runs.b.network]") :],
+                "[experiment.runs.b]\nnetwork = nan\n",
+            ),
+            "experiment.runs.b.network",
+        ),
+        (
+            (
+                TINY[TINY.index("[experiment.runs.b.network.motion]") :],
+                "motion = 2.0\n",
+            ),
+            "experiment.runs.b: network.motion",
+        ),
     ],
 )
 def test_bad_recipe_keys_fail_before_any_work(monkeypatch, edit, key):

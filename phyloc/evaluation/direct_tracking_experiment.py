@@ -145,6 +145,12 @@ class DirectTrackingExperimentSpec:
                     f"experiment.runs.{name}", run, "a table with a network table"
                 )
             check_keys(run, ["network"], f"experiment.runs.{name}")
+            if not isinstance(run.get("network", {}), dict):
+                raise ValidationError(
+                    f"experiment.runs.{name}.network",
+                    run["network"],
+                    "a table of [network] keys this run changes, e.g. n_agents = 6",
+                )
         methods = check_labels(self.methods)
         if not methods:
             raise ValidationError("experiment.methods", [], "at least one method")
@@ -160,7 +166,7 @@ class DirectTrackingExperimentSpec:
         out = {}
         for name, run in self.runs.items():
             d = _merge(base, run.get("network", {}))
-            if self.max_snapshots:
+            if self.max_snapshots and isinstance(d.get("motion", {}), dict):
                 motion = dict(d.get("motion", {}))
                 motion["n_snapshots"] = min(int(motion.get("n_snapshots", 1)), self.max_snapshots)
                 d["motion"] = motion
