@@ -62,6 +62,23 @@ def test_membership_and_get_answer_without_raising():
     assert "dipnet" in METHODS and "dipnett" not in METHODS
     assert METHODS.get("dipnett") is None
     assert METHODS.get("dipnet") is METHODS["dipnet"]
+    # a recipe can give a list or a table where a name belongs (method = [])
+    assert [] not in METHODS and {} not in METHODS and METHODS.get([]) is None
+    with pytest.raises(ValidationError, match="registered method"):
+        METHODS[[]]
+
+
+def test_a_label_whose_method_is_a_list_is_one_error_naming_the_key():
+    from phyloc.config import load_recipe
+    from phyloc.evaluation.kinds import validate_recipe
+
+    text = (RECIPES[0].parent / "poa_nbp.toml").read_text()
+    text = text.replace(
+        '[localization.wls_paper]\nmethod = "wls"', "[localization.wls_paper]\nmethod = []"
+    )
+    assert "method = []" in text
+    with pytest.raises(ValidationError, match="method"):
+        validate_recipe(load_recipe(text))
 
 
 @dataclass(frozen=True)

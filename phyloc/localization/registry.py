@@ -121,17 +121,17 @@ class Registry(Mapping):
     def __getitem__(self, name: str) -> Method:
         try:
             return self._methods[name]
-        except KeyError:
+        except (KeyError, TypeError):  # TypeError: a list or table given as a name
             raise ValidationError(
                 "method", name, "a registered method: " + ", ".join(self._methods)
             ) from None
 
     def __contains__(self, name) -> bool:
-        return name in self._methods
+        return isinstance(name, str) and name in self._methods
 
     def get(self, name, default=None):
         """The method registered as ``name``, or ``default``."""
-        return self._methods.get(name, default)
+        return self._methods.get(name, default) if isinstance(name, str) else default
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._methods)
