@@ -48,6 +48,26 @@ def test_a_shard_table_naming_files_outside_is_refused(dataset, capsys, name):
     assert "shards/file" in line and repr(name) in line and "outside" in line
 
 
+@pytest.mark.parametrize(
+    "edit, words",
+    [
+        (lambda f: f.attrs.modify("n_shards", 3), "rows where n_shards = 3"),
+        (lambda f: f.attrs.modify("n_shards", 1), "rows where n_shards = 1"),
+        (lambda f: f["shards/realization_stop"].__setitem__(1, 7), "realization ranges"),
+        (lambda f: f["shards/realization_start"].__setitem__(0, -1), "realization ranges"),
+    ],
+)
+def test_a_shard_table_disagreeing_with_the_master_is_refused(dataset, capsys, edit, words):
+    """A bit flip in n_shards once made ``info --verify`` index past the table."""
+    with h5py.File(dataset, "r+") as f:
+        edit(f)
+    capsys.readouterr()
+    for command in (["info", str(dataset)], ["info", str(dataset), "--verify"]):
+        assert main(command) == 2
+        line = _one_line(capsys)
+        assert words in line and "--resume" in line and str(dataset) in line
+
+
 def test_a_shard_linked_to_a_file_elsewhere_is_refused(dataset, tmp_path, capsys):
     shard = sorted((dataset.parent / "d.h5.shards").glob("shard-*.h5"))[0]
     elsewhere = tmp_path / "elsewhere.h5"

@@ -212,6 +212,7 @@ class Dataset:
             "n_links": sh["n_links"][:],
             "n_paths": sh["n_paths"][:],
         }
+        self._check_shard_table()
         self.array_names = tuple(sc._text(x) for x in sh["array_sha256"].attrs["arrays"])
         seen = set()  # a master from elsewhere names only its own files (each checked once)
         for name in self.shards["file"]:
@@ -230,6 +231,25 @@ class Dataset:
                 f"dataset {self.path}: {outside}; a dataset reads only its own files (refusing it)"
             )
         self._check_declared_sizes()
+
+    def _check_shard_table(self) -> None:
+        """Refuse a master whose shard table disagrees with its own attributes (a column of
+        another length than ``n_shards``, realization ranges outside ``n_realizations``): a
+        damaged master, which ``generate --resume`` rebuilds from the shards."""
+        rows = {len(col) for col in self.shards.values()}
+        start, stop = self.shards["realization_start"], self.shards["realization_stop"]
+        why = None
+        if rows != {self.n_shards}:
+            why = f"its shard table has {sorted(rows)} rows where n_shards = {self.n_shards}"
+        elif self.n_shards and (
+            np.any(start < 0) or np.any(stop < start) or np.any(stop > self.n_realizations)
+        ):
+            why = f"its shard table's realization ranges leave 0..{self.n_realizations}"
+        if why:
+            raise sc.DatasetError(
+                f"dataset {self.path}: {why} (a damaged master; `phyloc generate RECIPE -o "
+                f"{self.path} --resume` rebuilds it from the shards)"
+            )
 
     def _check_declared_sizes(self) -> None:
         """Refuse, from the headers, a master whose datasets declare more than reading them
