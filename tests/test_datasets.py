@@ -11,6 +11,7 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
+from masters import edited_master, restamp
 
 import phyloc.datasets as pds
 from phyloc.datasets import schema as sc
@@ -362,14 +363,14 @@ def test_array_checksum_catches_flip_without_master_record(tmp_path, reference):
 
 def test_newer_schema_and_foreign_files_are_refused(tmp_path, reference):
     out = _copy_dataset(reference[0], tmp_path)
-    with h5py.File(out, "r+") as f:
+    with edited_master(out) as f:
         f.attrs["schema_version"] = "2.0"
     for call in (pds.open, pds.info):
         with pytest.raises(pds.SchemaVersionError, match=r"schema 2.0, newer.*upgrade phyloc"):
             call(out)
     with pytest.raises(pds.SchemaVersionError):
         pds.generate(TINY, out, resume=True, progress=False)
-    with h5py.File(out, "r+") as f:
+    with edited_master(out) as f:
         f.attrs["schema_version"] = "1.7"  # a newer minor version is readable
     assert pds.info(out)["schema_version"] == "1.7"
     other = tmp_path / "other.h5"
@@ -502,7 +503,7 @@ def test_schema_1_0_files_stay_readable_but_are_not_opened_by_xarray(tmp_path, r
     """A master of schema 1.0 (no dimension scales) reads as before; ``open_xarray`` refuses it
     with the reason instead of returning phony dimensions."""
     out = _copy_dataset(reference[0], tmp_path)
-    with h5py.File(out, "r+") as f:
+    with edited_master(out) as f:
         for name in ("realization", "snapshot", "node", "coordinate", "link", "end"):
             del f[name]  # the scales a 1.0 writer never made (detached with them)
         f.attrs["schema_version"] = "1.0"
@@ -534,7 +535,7 @@ def test_verify_checks_the_master_itself(tmp_path, reference):
         assert len(sc._text(f.attrs[sc.MASTER_DIGEST_ATTR])) == 64
 
     cases = {
-        "flip": lambda p: _flip_stored_byte(p, "shards/bytes", 1),
+        "flip": lambda p: (_flip_stored_byte(p, "shards/bytes", 1), restamp(p)),
         "attribute": lambda p: _edit(p, lambda f: f.attrs.__setitem__("seed", 12)),
         "group": lambda p: _edit(p, lambda f: f.__delitem__("channel")),
         "units": lambda p: _edit(p, lambda f: f["received"].attrs.__setitem__("units", "W")),
@@ -555,6 +556,38 @@ def test_verify_checks_the_master_itself(tmp_path, reference):
         pds.open(out)
 
 
+def test_a_master_whose_bytes_changed_is_refused_before_hdf5_reads_it(tmp_path, reference):
+    """Schema 1.2: the master's bytes carry their SHA-256 in a 512-byte user block. A bit
+    flipped anywhere in the file (the header, HDF5 metadata, free space, the shard table) is
+    refused by open, verify and the evaluation's shard check with the rebuild command, before
+    HDF5 parses it: a flip in a virtual dataset's mapping made HDF5 crash the process."""
+    src = reference[0]
+    data = src.read_bytes()
+    assert data.startswith(sc.MASTER_HEADER_MAGIC)
+    assert data[sc.MASTER_HEADER_BYTES :].startswith(sc.HDF5_SIGNATURE)
+    with h5py.File(src, "r") as f:  # every HDF5 reader skips the user block
+        assert f.userblock_size == sc.MASTER_HEADER_BYTES and "received" in f
+    out = _copy_dataset(src, tmp_path)
+    for offset in [0, 40, 100, 511, *range(512, len(data), max(1, len(data) // 97))]:
+        out.write_bytes(data[:offset] + bytes([data[offset] ^ 0x10]) + data[offset + 1 :])
+        for call in (pds.open, pds.verify, check_shard_files):
+            with pytest.raises(pds.DatasetError, match=r"header|SHA-256 in its header"):
+                call(out)
+    out.write_bytes(data)
+    assert pds.verify(out)["ok"]
+
+
+def test_a_master_without_its_header_is_reported_by_verify(tmp_path, reference):
+    """A 1.2 master whose user block was stripped (HDF5 signature first) still opens, but
+    ``verify`` reports the missing byte checksum."""
+    out = _copy_dataset(reference[0], tmp_path)
+    out.write_bytes(out.read_bytes()[sc.MASTER_HEADER_BYTES :])
+    with pds.open(out) as ds:
+        assert ds.n_shards == 4
+    res = pds.verify(out)
+    assert not res["ok"] and "byte checksum header is missing" in res["problems"]["master"]
+
+
 def _edit(path, change):
-    with h5py.File(path, "r+") as f:
+    with edited_master(path) as f:
         change(f)

@@ -8,6 +8,7 @@ import shutil
 
 import h5py
 import pytest
+from masters import edited_master
 
 from phyloc.cli import main
 from phyloc.errors import ValidationError
@@ -39,7 +40,7 @@ def _one_line(capsys) -> str:
 
 @pytest.mark.parametrize("name", ["../outside.h5", "/etc/passwd", "d.h5.shards/../../x.h5"])
 def test_a_shard_table_naming_files_outside_is_refused(dataset, capsys, name):
-    with h5py.File(dataset, "r+") as f:
+    with edited_master(dataset) as f:
         files = f["shards/file"]
         files[0] = name
     capsys.readouterr()
@@ -59,7 +60,7 @@ def test_a_shard_table_naming_files_outside_is_refused(dataset, capsys, name):
 )
 def test_a_shard_table_disagreeing_with_the_master_is_refused(dataset, capsys, edit, words):
     """A bit flip in n_shards once made ``info --verify`` index past the table."""
-    with h5py.File(dataset, "r+") as f:
+    with edited_master(dataset) as f:
         edit(f)
     capsys.readouterr()
     for command in (["info", str(dataset)], ["info", str(dataset), "--verify"]):
@@ -158,7 +159,7 @@ def test_a_master_with_an_external_link_is_refused(dataset, tmp_path, capsys):
     target = tmp_path / "elsewhere.h5"
     with h5py.File(target, "w") as f:
         f["x"] = [1, 2, 3]
-    with h5py.File(dataset, "r+") as f:
+    with edited_master(dataset) as f:
         f["sneaky"] = h5py.ExternalLink(str(target), "/x")
     capsys.readouterr()
     assert main(["info", str(dataset)]) == 2
@@ -176,7 +177,7 @@ def test_a_shard_keeping_data_in_an_external_file_is_refused(dataset, tmp_path, 
     shard = sorted((dataset.parent / "d.h5.shards").glob("shard-*.h5"))[0]
     with h5py.File(shard, "r+") as f:
         f.create_dataset("leak", shape=(64,), dtype="u1", external=[(str(secret), 0, 64)])
-    with h5py.File(dataset, "r+") as f:
+    with edited_master(dataset) as f:
         f["shards/file_sha256"][0] = sc.sha256_file(shard).encode()
         f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)
     capsys.readouterr()
@@ -224,7 +225,7 @@ def test_a_shard_declaring_terabytes_is_refused_before_it_is_read(dataset, tmp_p
 
     shard = sorted((dataset.parent / "d.h5.shards").glob("shard-*.h5"))[0]
     _declare_huge(shard, "received")
-    with h5py.File(dataset, "r+") as f:
+    with edited_master(dataset) as f:
         f["shards/file_sha256"][0] = sc.sha256_file(shard).encode()
         f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)
     capsys.readouterr()
@@ -241,7 +242,7 @@ def test_a_master_declaring_more_than_the_memory_is_refused(dataset, capsys, whe
     or which holds an extra dataset of 2⁴⁰ elements (``verify`` reads the master's own
     datasets whole to checksum them: it used to end in "internal error: MemoryError"):
     refused in one line when it is opened, before its checksum is computed."""
-    with h5py.File(dataset, "r+") as f:
+    with edited_master(dataset) as f:
         if where == "received":
             del f["received"]  # the virtual dataset; an ordinary one declaring 2^40 samples
             f.create_dataset("received", shape=(2, 1, 6, 2**40), dtype="c8", chunks=(1, 1, 6, 64))

@@ -506,15 +506,15 @@ def import_arrays(source, out, *, recipe=None, force: bool = False) -> Path:
     sdir.mkdir()
     with output_lock(sdir, out):
         record = _write_imported_shard(sdir / sc.shard_name(0), data, fingerprint, stored.seed)
-        write_master(out, plan, [record])
-        with h5py.File(out, "r+") as f:
-            if data.dt_s is None:
-                f.attrs["dt_s"] = math.nan
-            f.attrs["source"] = "imported"
-            f.attrs["imported_from"] = label
-            f.attrs["truth"] = ",".join(data.truth)
-            f.attrs["node_order"] = data.node_order
-            f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)  # with the attributes above
+        provenance = {
+            "source": "imported",
+            "imported_from": label,
+            "truth": ",".join(data.truth),
+            "node_order": data.node_order,
+        }
+        if data.dt_s is None:
+            provenance["dt_s"] = math.nan
+        write_master(out, plan, [record], attrs=provenance)
     return out
 
 

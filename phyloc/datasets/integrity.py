@@ -43,14 +43,19 @@ def _axis_sizes(ds: Dataset) -> dict:
 def check_master(ds: Dataset) -> str | None:
     """What is wrong with an open dataset's master file itself, or None: an expected array,
     group or dimension scale missing, or content that differs from the master's own SHA-256
-    (:func:`~phyloc.datasets.schema.master_digest`; files before schema 1.1 have none)."""
+    (:func:`~phyloc.datasets.schema.master_digest`; files before schema 1.1 have none), or a
+    schema 1.2 master without its byte checksum header."""
     f = ds.file
     for name in (*ds.array_names, "system", "shards"):
         if name not in f:
             return f"master: {name} is missing"
+    version = tuple(int(x) for x in ds.schema_version.split(".")[:2])
+    if version >= (1, 2):
+        with open(ds.path, "rb") as fh:
+            if fh.read(len(sc.HDF5_SIGNATURE)) == sc.HDF5_SIGNATURE:
+                return "master: its byte checksum header is missing"
     stored = sc._text(f.attrs.get(sc.MASTER_DIGEST_ATTR, ""))
     if not stored:
-        version = tuple(int(x) for x in ds.schema_version.split(".")[:2])
         return None if version < (1, 1) else "master: its content checksum is missing"
     if sc.master_digest(f) != stored:
         return "master: content differs from its SHA-256 (altered or corrupt)"

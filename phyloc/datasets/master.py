@@ -44,11 +44,15 @@ def utc_now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds").replace("+00:00", "Z")
 
 
-def write_master(out, plan: DatasetPlan, records, *, created: str | None = None) -> Path:
+def write_master(
+    out, plan: DatasetPlan, records, *, created: str | None = None, attrs: dict | None = None
+) -> Path:
     """Write the master file of ``out`` from the shard table ``records`` (atomically).
 
     ``records[j]`` is shard j's row (as returned by a shard task or
     :func:`~phyloc.datasets.schema.check_shard`) or None when the shard is not complete.
+    ``attrs`` are root attributes set last (an imported dataset's provenance). The file's
+    bytes carry their SHA-256 in a user block (:func:`~phyloc.datasets.schema.stamp_master`).
     """
     out = Path(out)
     sdir = sc.shard_dir(out)
@@ -79,10 +83,11 @@ def write_master(out, plan: DatasetPlan, records, *, created: str | None = None)
         for a in arrays:
             _write_master_array(f, a, dims, done, path_offset, sdir.name)
         _write_dimension_scales(f, plan, dims, arrays)
+        f.attrs.update(attrs or {})
         f.attrs[sc.MASTER_DIGEST_ATTR] = sc.master_digest(f)  # last: covers the rest
         f.flush()
         image = f.id.get_file_image()
-    write_atomic(out, image)
+    write_atomic(out, sc.stamp_master(image))
     return out
 
 
@@ -261,6 +266,8 @@ def previous_master(out: Path, plan: DatasetPlan, sdir: Path):
     if not out.exists():
         return None, {}
     try:
+        if sc.master_bytes_problem(out):
+            raise OSError("damaged master")  # HDF5 may crash on it: never opened
         f = h5py.File(out, "r")
     except OSError:
         if any(sdir.glob("shard-*.h5")) or not out.stat().st_size:

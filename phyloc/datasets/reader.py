@@ -154,6 +154,12 @@ class Dataset:
         why = v.unreadable_file(self.path)
         if why:
             raise sc.DatasetError(f"dataset {why} (give the master .h5 file of a dataset)")
+        damage = sc.master_bytes_problem(self.path)
+        if damage:  # never handed to HDF5, which may crash on damaged metadata
+            raise sc.DatasetError(
+                f"dataset {self.path}: {damage}; a damaged master: `phyloc generate RECIPE -o "
+                f"{self.path} --resume` rebuilds it from the shards (import an imported one again)"
+            )
         try:
             self.file = h5py.File(self.path, "r")
         except OSError as exc:

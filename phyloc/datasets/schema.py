@@ -1,4 +1,4 @@
-"""The HDF5 layout of a phyloc waveform dataset (schema 1.1; documented in datasets/README.md).
+"""The HDF5 layout of a phyloc waveform dataset (schema 1.2; documented in datasets/README.md).
 
 A dataset is a *master* file ``OUT.h5`` and a sidecar folder ``OUT.h5.shards/`` of shard files
 ``shard-00000.h5``, … . Every shard holds the arrays of a contiguous range of realizations
@@ -29,7 +29,8 @@ from phyloc.reporting import OutputExistsError
 
 #: Version of the layout written by this phyloc, "MAJOR.MINOR". Readers accept files of the
 #: same major version (minor versions only add arrays or attributes) and refuse newer majors.
-SCHEMA_VERSION = "1.1"  # 1.1: HDF5 dimension scales on every array of the master
+SCHEMA_VERSION = "1.2"  # 1.1: HDF5 dimension scales on every array of the master;
+#                          1.2: the master's bytes carry their SHA-256 in a user block
 SCHEMA_MAJOR = int(SCHEMA_VERSION.split(".")[0])
 #: Root attribute ``format`` of a master file and of a shard file.
 MASTER_FORMAT = "phyloc.dataset"
@@ -333,6 +334,51 @@ def sha256_h5(dset, *, max_bytes: int = 1 << 26) -> str:
     for i in range(0, dset.shape[0], step):
         h.update(np.ascontiguousarray(dset[i : i + step]).data)
     return h.hexdigest()
+
+
+MASTER_HEADER_BYTES = 512
+"""Size of the master's HDF5 user block (schema >= 1.2), which holds the bytes' SHA-256."""
+MASTER_HEADER_MAGIC = b"phyloc.dataset master sha256="
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def stamp_master(image: bytes) -> bytes:
+    """A master file's bytes from its HDF5 image: a user block of
+    :data:`MASTER_HEADER_BYTES` holding the SHA-256 of the image, then the image.
+
+    HDF5 skips a user block (it finds its signature at byte 512), so every HDF5 tool reads
+    the file as before; phyloc checks the bytes against the digest before it hands the file
+    to HDF5, which may crash on damaged metadata instead of raising an error.
+
+    >>> stamped = stamp_master(HDF5_SIGNATURE + bytes(8))
+    >>> len(stamped), stamped[:29].decode()
+    (528, 'phyloc.dataset master sha256=')
+    """
+    return stamp_header(hashlib.sha256(image).hexdigest()) + image
+
+
+def master_bytes_problem(path) -> str | None:
+    """What is wrong with a master file's bytes, or None: a header that is not phyloc's, or
+    bytes that differ from the SHA-256 in its header (:func:`stamp_master`). A file that
+    starts with the HDF5 signature has no header (schema < 1.2, or written by another tool)
+    and is left to HDF5 and :func:`master_digest`."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        head = fh.read(MASTER_HEADER_BYTES)
+        if head.startswith(HDF5_SIGNATURE):
+            return None
+        if not head.startswith(MASTER_HEADER_MAGIC) or len(head) < MASTER_HEADER_BYTES:
+            return "its first bytes are neither phyloc's header nor an HDF5 signature"
+        while block := fh.read(1 << 20):
+            h.update(block)
+    if head != stamp_header(h.hexdigest()):  # the digest and the zero padding
+        return "its bytes differ from the SHA-256 in its header (altered or corrupt)"
+    return None
+
+
+def stamp_header(hexdigest: str) -> bytes:
+    """The master's user block for an image of SHA-256 ``hexdigest``."""
+    return (MASTER_HEADER_MAGIC + hexdigest.encode() + b"\n").ljust(MASTER_HEADER_BYTES, b"\0")
 
 
 MASTER_DIGEST_ATTR = "content_sha256"
