@@ -278,6 +278,7 @@ def test_replica_recipe_geometry():
             ),
             "experiment.runs.b: network.motion",
         ),
+        (("n_snapshots = 4", 'n_snapshots = "four"'), "n_snapshots"),
     ],
 )
 def test_bad_recipe_keys_fail_before_any_work(monkeypatch, edit, key):

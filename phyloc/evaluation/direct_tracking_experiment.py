@@ -168,7 +168,9 @@ class DirectTrackingExperimentSpec:
             d = _merge(base, run.get("network", {}))
             if self.max_snapshots and isinstance(d.get("motion", {}), dict):
                 motion = dict(d.get("motion", {}))
-                motion["n_snapshots"] = min(int(motion.get("n_snapshots", 1)), self.max_snapshots)
+                n = motion.get("n_snapshots", 1)
+                if isinstance(n, int) and not isinstance(n, bool):  # else NetworkSpec names it
+                    motion["n_snapshots"] = min(n, self.max_snapshots)
                 d["motion"] = motion
             try:
                 out[name] = NetworkSpec.from_dict(d)
