@@ -140,7 +140,11 @@ def test_workers_without_the_plugin_are_named_before_any_work(
 
     monkeypatch.setattr(METHODS, "_methods", dict(METHODS._methods))
     monkeypatch.setattr(registry, "_loaded", set())
-    monkeypatch.delenv("PHYLOC_PLUGINS", raising=False)
+    # set, then deleted: monkeypatch records the variable and restores (or removes) it
+    # afterwards; delenv alone records nothing when it is unset, and the --plugin the
+    # test passes would leak into later tests (and the workers they start)
+    monkeypatch.setenv("PHYLOC_PLUGINS", "")
+    monkeypatch.delenv("PHYLOC_PLUGINS")
     address, _ = cluster
     recipe = tmp_path / "p.toml"
     recipe.write_text(_recipe())

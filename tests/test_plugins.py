@@ -44,7 +44,11 @@ def _evaluate(tmp_path, name, shrink=1.0, extra=()):
 def _clean_registry(monkeypatch):
     """Each test registers the example afresh and leaves the registry as it found it."""
     monkeypatch.setattr(METHODS, "_methods", dict(METHODS._methods))
-    monkeypatch.delenv("PHYLOC_PLUGINS", raising=False)
+    # set, then deleted: monkeypatch records the variable and restores (or removes) it
+    # afterwards; delenv alone records nothing when it is unset, and the --plugin the
+    # test passes would leak into later tests (and the workers they start)
+    monkeypatch.setenv("PHYLOC_PLUGINS", "")
+    monkeypatch.delenv("PHYLOC_PLUGINS")
     from phyloc.localization import registry
 
     monkeypatch.setattr(registry, "_loaded", set())
