@@ -9,6 +9,7 @@ from naive import C0, trapezoid_zzb
 from phyloc.errors import ValidationError
 from phyloc.phy.bounds import crb_range, post_correlation_snr, ranging_crb, zzb_range
 from phyloc.phy.waveform import qpsk_symbols
+from phyloc.ranging.variance import ranging_variance
 
 
 @pytest.fixture
@@ -91,3 +92,16 @@ def test_bounds_at_extreme_snr_stay_defined(paper_system, S):
         crb_range(-1.0, S, paper_system)
     with pytest.raises(ValidationError, match="prior_range_m"):
         zzb_range(1.0, S, paper_system, prior_range_m=0.0)
+
+
+def test_zzb_prior_beyond_the_unambiguous_range_is_refused_by_name(paper_system, S):
+    """ρ(h) repeats every c0/Δf (20.5 km for the paper's 14.65 kHz), so a uniform prior longer
+    than that is not a ranging prior; 1e300 m once made the lag grid overflow NumPy
+    ("Maximum allowed size exceeded", found by the recipe fuzzer)."""
+    limit = C0 / paper_system.subcarrier_spacing_hz
+    zzb_range(np.array([1.0]), S, paper_system, prior_range_m=0.99 * limit)  # allowed
+    for D in (1.01 * limit, 1e300):
+        with pytest.raises(ValidationError, match=r"prior_range_m.*unambiguous range c0/Δf"):
+            zzb_range(np.array([1.0]), S, paper_system, prior_range_m=D)
+    with pytest.raises(ValidationError, match="prior_range_m"):
+        ranging_variance(np.array([1.0]), S, paper_system, prior_range_m=1e300)

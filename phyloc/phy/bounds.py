@@ -160,6 +160,14 @@ def zzb_range(
     s = _snr(snr)
     P = _power_spectrum(symbols, system)
     D = v.positive("prior_range_m", prior_range_m)
+    unambiguous = C0 / system.subcarrier_spacing_hz  # ρ(h) repeats with this period
+    if D > unambiguous:
+        raise ValidationError(
+            "prior_range_m",
+            D,
+            f"at most the unambiguous range c0/Δf = {unambiguous:.0f} m of this system "
+            "(the pilots' correlation repeats beyond it)",
+        )
     flat = s.ravel()
     with np.errstate(divide="ignore"):
         crb = crb_range(flat, symbols, system)
