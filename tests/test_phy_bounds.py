@@ -8,6 +8,7 @@ import pytest
 from naive import C0, trapezoid_zzb
 from phyloc.errors import ValidationError
 from phyloc.phy.bounds import crb_range, post_correlation_snr, ranging_crb, zzb_range
+from phyloc.phy.system import OFDMSystem
 from phyloc.phy.waveform import qpsk_symbols
 from phyloc.ranging.variance import ranging_variance
 
@@ -94,14 +95,19 @@ def test_bounds_at_extreme_snr_stay_defined(paper_system, S):
         zzb_range(1.0, S, paper_system, prior_range_m=0.0)
 
 
-def test_zzb_prior_beyond_the_unambiguous_range_is_refused_by_name(paper_system, S):
-    """ρ(h) repeats every c0/Δf (20.5 km for the paper's 14.65 kHz), so a uniform prior longer
-    than that is not a ranging prior; 1e300 m once made the lag grid overflow NumPy
-    ("Maximum allowed size exceeded", found by the recipe fuzzer)."""
-    limit = C0 / paper_system.subcarrier_spacing_hz
-    zzb_range(np.array([1.0]), S, paper_system, prior_range_m=0.99 * limit)  # allowed
-    for D in (1.01 * limit, 1e300):
-        with pytest.raises(ValidationError, match=r"prior_range_m.*unambiguous range c0/Δf"):
+def test_zzb_prior_beyond_its_lag_grid_is_refused_by_name(paper_system, S):
+    """The ZZB is integrated on a uniform lag grid of step c0/(32 B) held in memory, so the prior
+    range has a limit (65 536 steps); 1e300 m once made the grid overflow NumPy ("Maximum allowed
+    size exceeded", found by the recipe fuzzer). A prior beyond the unambiguous range c0/Δf is
+    still a prior (ρ repeats, the hypotheses a period apart are confused), so 300 m at Δf = 1 MHz
+    (c0/Δf = 299.8 m) is allowed."""
+    step = C0 / (32.0 * paper_system.bandwidth_hz)
+    zzb_range(np.array([1.0]), S, paper_system, prior_range_m=0.99 * 65_536 * step)  # allowed
+    for D in (1.01 * 65_536 * step, 1e300):
+        with pytest.raises(ValidationError, match=r"prior_range_m.*lag grid of step c0/\(32 B\)"):
             zzb_range(np.array([1.0]), S, paper_system, prior_range_m=D)
     with pytest.raises(ValidationError, match="prior_range_m"):
         ranging_variance(np.array([1.0]), S, paper_system, prior_range_m=1e300)
+    wide = OFDMSystem(n_subcarriers=65, subcarrier_spacing_hz=1e6)
+    Sw = np.ones(wide.n_subcarriers, complex)
+    assert np.isfinite(zzb_range(np.array([1.0, 1e6]), Sw, wide, prior_range_m=300.0)).all()

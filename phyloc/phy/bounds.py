@@ -27,6 +27,10 @@ from phyloc.errors import ValidationError
 from phyloc.phy.system import C0, OFDMSystem
 from phyloc.phy.waveform import check_symbols
 
+# The ZZB's uniform lag grid: at most this many points (65 536 × 1000 SNRs × 8 B = 0.5 GB per
+# array of a chunk of ranging_variance); the prior range is refused beyond it.
+_MAX_UNIFORM_LAGS = 65_536
+
 
 def _snr(snr) -> np.ndarray:
     s = np.asarray(snr, dtype=np.float64)
@@ -160,13 +164,14 @@ def zzb_range(
     s = _snr(snr)
     P = _power_spectrum(symbols, system)
     D = v.positive("prior_range_m", prior_range_m)
-    unambiguous = C0 / system.subcarrier_spacing_hz  # ρ(h) repeats with this period
-    if D > unambiguous:
+    step = C0 / (32.0 * system.bandwidth_hz)  # resolves the sidelobes of ρ
+    if D / step > _MAX_UNIFORM_LAGS:
         raise ValidationError(
             "prior_range_m",
             D,
-            f"at most the unambiguous range c0/Δf = {unambiguous:.0f} m of this system "
-            "(the pilots' correlation repeats beyond it)",
+            f"at most {_MAX_UNIFORM_LAGS * step:.6g} m for this system: the bound is integrated "
+            f"on a lag grid of step c0/(32 B) = {step:.3g} m, limited to {_MAX_UNIFORM_LAGS} "
+            "points to stay in memory",
         )
     flat = s.ravel()
     with np.errstate(divide="ignore"):
@@ -175,7 +180,7 @@ def zzb_range(
     h_lo = 1e-4 * min(np.sqrt(finite_crb.min()) if finite_crb.size else D, D)
     h_lo = max(h_lo, D * 1e-12)
     geo = np.geomspace(h_lo, D, 3000)
-    uni = np.arange(0.0, D, C0 / (32.0 * system.bandwidth_hz))
+    uni = np.arange(0.0, D, step)
     h = np.unique(np.concatenate([[0.0], geo, uni, [D]]))
     h = h[h <= D]
     omr = _one_minus_rho(h, P, system)
