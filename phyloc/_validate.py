@@ -48,6 +48,17 @@ def integer(name: str, value, *, minimum: int | None = None) -> int:
     return x
 
 
+def integer_field(obj, attr: str, name: str, *, minimum: int | None = None) -> int:
+    """Check the count ``obj.attr`` with :func:`integer` and store it back as int.
+
+    For frozen dataclasses: a recipe's ``points = 3.0`` is accepted, and what the spec keeps is
+    ``3``, never the float (which NumPy refuses as a count).
+    """
+    x = integer(name, getattr(obj, attr), minimum=minimum)
+    object.__setattr__(obj, attr, x)
+    return x
+
+
 def boolean(name: str, value) -> bool:
     """Return ``value`` if it is a bool (``numpy.bool_`` too); 0/1 and strings are refused."""
     if not isinstance(value, (bool, np.bool_)):

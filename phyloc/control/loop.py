@@ -106,12 +106,12 @@ class ControlScenario:
 
     def __post_init__(self):
         s = "network"
-        v.integer(f"{s}.agents", self.agents, minimum=1)
+        v.integer_field(self, "agents", f"{s}.agents", minimum=1)
         m1 = v.integer(f"{s}.mobile_anchors", self.mobile_anchors, minimum=0)
         m0 = v.integer(f"{s}.static_anchors", self.static_anchors, minimum=0)
         if m0 + m1 == 0:
             raise ValidationError(f"{s}.mobile_anchors", 0, "at least one anchor in all")
-        v.integer(f"{s}.steps", self.steps, minimum=1)
+        v.integer_field(self, "steps", f"{s}.steps", minimum=1)
         lo, hi = (v.finite(f"{s}.region_m", x) for x in _pair(self.region_m, f"{s}.region_m"))
         if not lo < hi:
             raise ValidationError(f"{s}.region_m", list(self.region_m), "[lo, hi] with lo < hi")

@@ -57,7 +57,7 @@ class BeliefShiftSpec:
     def __post_init__(self):
         v.positive("experiment.nu", self.nu)
         v.positive("experiment.delta_max", self.delta_max)
-        v.integer("experiment.points", self.points, minimum=2)
+        v.integer_field(self, "points", "experiment.points", minimum=2)
 
 
 class BeliefShiftExperiment(Experiment):

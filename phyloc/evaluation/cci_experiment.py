@@ -109,11 +109,11 @@ class CCIExperimentSpec:
                 "experiment.scenarios", sc, "a non-empty list of scenario names or files"
             )
         object.__setattr__(self, "scenarios", tuple(sc))
-        v.integer("experiment.links", self.links, minimum=0)
+        v.integer_field(self, "links", "experiment.links", minimum=0)
         if self.links == 1:
             raise ValidationError("experiment.links", 1, "0 (no Monte Carlo) or >= 2")
-        v.integer("experiment.mc_points", self.mc_points, minimum=2)
-        v.integer("experiment.points", self.points, minimum=2)
+        v.integer_field(self, "mc_points", "experiment.mc_points", minimum=2)
+        v.integer_field(self, "points", "experiment.points", minimum=2)
         r = self.d0_range_m
         if not isinstance(r, (list, tuple)) or len(r) != 2:
             raise ValidationError("experiment.d0_range_m", r, "[min, max] in m")

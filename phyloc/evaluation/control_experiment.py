@@ -121,7 +121,7 @@ class ControlExperimentSpec:
     task_trials: int = 20
 
     def __post_init__(self):
-        v.integer("experiment.trials", self.trials, minimum=1)
+        v.integer_field(self, "trials", "experiment.trials", minimum=1)
         if not isinstance(self.variants, dict):
             raise ValidationError("experiment.variants", self.variants, "a table of labels")
         pols = check_labels(self.policies, "experiment.policies")
@@ -140,8 +140,8 @@ class ControlExperimentSpec:
         if not th:
             raise ValidationError("experiment.thresholds_m", [], "at least one threshold [m]")
         object.__setattr__(self, "thresholds_m", th)
-        v.integer("experiment.example_trial", self.example_trial, minimum=0)
-        v.integer("experiment.task_trials", self.task_trials, minimum=1)
+        v.integer_field(self, "example_trial", "experiment.example_trial", minimum=0)
+        v.integer_field(self, "task_trials", "experiment.task_trials", minimum=1)
         self.plan()  # every policy table is checked before any work
 
     def plan(self) -> dict:

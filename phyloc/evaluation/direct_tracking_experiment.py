@@ -155,10 +155,10 @@ class DirectTrackingExperimentSpec:
         if not methods:
             raise ValidationError("experiment.methods", [], "at least one method")
         object.__setattr__(self, "methods", methods)
-        v.integer("experiment.realizations", self.realizations, minimum=1)
-        v.integer("experiment.particles_snapshot", self.particles_snapshot, minimum=0)
+        v.integer_field(self, "realizations", "experiment.realizations", minimum=1)
+        v.integer_field(self, "particles_snapshot", "experiment.particles_snapshot", minimum=0)
         v.positive("experiment.fast_speed_m_s", self.fast_speed_m_s)
-        v.integer("experiment.max_snapshots", self.max_snapshots, minimum=0)
+        v.integer_field(self, "max_snapshots", "experiment.max_snapshots", minimum=0)
         v.positive("experiment.particle_scale", self.particle_scale)
 
     def networks(self, base: dict) -> dict:

@@ -175,7 +175,7 @@ class LocalizationExperimentSpec:
         if not agents:
             raise ValidationError("experiment.agents", [], "at least one size >= 2")
         object.__setattr__(self, "agents", agents)
-        v.integer("experiment.realizations", self.realizations, minimum=1)
+        v.integer_field(self, "realizations", "experiment.realizations", minimum=1)
         if isinstance(self.methods, str) or not tuple(self.methods):
             direct = REGISTRY.family("direct")
             raise ValidationError(

@@ -97,7 +97,7 @@ class RangingExperimentSpec:
         if not agents:
             raise ValidationError("experiment.agents", [], "at least one network size >= 2")
         object.__setattr__(self, "agents", agents)
-        v.integer("experiment.realizations", self.realizations, minimum=1)
+        v.integer_field(self, "realizations", "experiment.realizations", minimum=1)
         bins = tuple(float(b) for b in self.distance_bins_m)
         if len(bins) < 2 or np.any(np.diff(bins) <= 0):
             raise ValidationError(
@@ -105,7 +105,7 @@ class RangingExperimentSpec:
             )
         object.__setattr__(self, "distance_bins_m", bins)
         object.__setattr__(self, "awgn_snr_db", tuple(float(x) for x in self.awgn_snr_db))
-        v.integer("experiment.awgn_links", self.awgn_links, minimum=0)
+        v.integer_field(self, "awgn_links", "experiment.awgn_links", minimum=0)
 
 
 def _task(payload, seed_seq):

@@ -230,7 +230,7 @@ class LocalizationSpec:
                 "localization.init_robust_scale_m", raw, "scales > 0 [m], or 0 (plain SMACOF)"
             )
         object.__setattr__(self, "init_robust_scale_m", scales)
-        v.integer("localization.init_restarts", self.init_restarts, minimum=0)
+        v.integer_field(self, "init_restarts", "localization.init_restarts", minimum=0)
         v.choice("localization.init_solver", self.init_solver, SOLVERS)
         check_min_concentration(self.los_min_concentration, "localization.los_min_concentration")
         v.positive("localization.informed_std_m", self.informed_std_m)

@@ -293,7 +293,7 @@ class TrackingExperimentSpec:
                 )
             scen[tok] = {"n_agents": n, "comm_range_m": r}
         object.__setattr__(self, "scenarios", scen)
-        v.integer("experiment.runs", self.runs, minimum=1)
+        v.integer_field(self, "runs", "experiment.runs", minimum=1)
         K = v.integer("experiment.n_steps", self.n_steps, minimum=1)
         methods = check_labels(self.methods)
         known = METHODS.family(FAMILY)
@@ -344,18 +344,20 @@ class TrackingExperimentSpec:
             raise ValidationError(
                 "experiment.method_runs", self.method_runs, "a table {method = runs}"
             )
+        runs = {}
         for m, n in self.method_runs.items():
             if m not in methods:
                 raise ValidationError(
                     "experiment.method_runs", m, f"keys from {', '.join(methods)}"
                 )
-            v.integer(f"experiment.method_runs.{m}", n, minimum=1)
+            runs[m] = v.integer(f"experiment.method_runs.{m}", n, minimum=1)
+        object.__setattr__(self, "method_runs", runs)
         sizes = tuple(
             v.integer("experiment.memory_agents", n, minimum=1) for n in self.memory_agents
         )
         object.__setattr__(self, "memory_agents", sizes)
-        v.integer("experiment.memory_steps", self.memory_steps, minimum=1)
-        v.integer("experiment.memory_repeats", self.memory_repeats, minimum=1)
+        v.integer_field(self, "memory_steps", "experiment.memory_steps", minimum=1)
+        v.integer_field(self, "memory_repeats", "experiment.memory_repeats", minimum=1)
 
     def model(self) -> RangeModel:
         """The :class:`RangeModel` of the recipe."""

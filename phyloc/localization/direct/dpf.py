@@ -116,18 +116,18 @@ class DPFOptions:
     interpolation: str = "cubic"
 
     def __post_init__(self):
-        v.integer("n_particles", self.n_particles, minimum=1)
-        v.integer("n_iterations", self.n_iterations, minimum=1)
+        v.integer_field(self, "n_particles", "n_particles", minimum=1)
+        v.integer_field(self, "n_iterations", "n_iterations", minimum=1)
         temp = tuple(float(g) for g in np.atleast_1d(self.tempering))
         if not temp or any(not (0 < g <= 1) for g in temp):
             raise ValidationError("tempering", self.tempering, "values in (0, 1]")
         object.__setattr__(self, "tempering", temp)
-        v.integer("n_moves", self.n_moves, minimum=0)
+        v.integer_field(self, "n_moves", "n_moves", minimum=0)
         if not 0 < float(self.ess_fraction) < 1:
             raise ValidationError("ess_fraction", self.ess_fraction, "in (0, 1)")
-        v.integer("max_annealing_steps", self.max_annealing_steps, minimum=1)
+        v.integer_field(self, "max_annealing_steps", "max_annealing_steps", minimum=1)
         v.positive("move_scale", self.move_scale)
-        v.integer("translate", self.translate, minimum=0)
+        v.integer_field(self, "translate", "translate", minimum=0)
         v.positive("cov_floor_m", self.cov_floor_m, allow_zero=True)
         if self.interpolation not in ("linear", "cubic", "quintic"):
             raise ValidationError("interpolation", self.interpolation, "linear, cubic or quintic")
