@@ -206,6 +206,8 @@ def test_table1_section_figures_and_summary(monkeypatch):
             "marginal_tabulated.speedup",
             "c2.agent_iteration_s",
             "gauss.evals_per_s_per_core",
+            "gauss_bounded.evals_per_s_per_core",
+            "gauss_bounded.cost_vs_gauss",
             "env.numpy_evals_per_s",
             "env.speedup_vs_numpy",
             "agent_iteration_s",

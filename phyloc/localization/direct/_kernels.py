@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit, prange
 
 from phyloc._jit import by_threads
+from phyloc.localization._softplus import log1p_exp_neg_into
 from phyloc.phy.correlation import lagrange_eval
 from phyloc.ranging.numerics import correlate_derivs, newton_peak
 
@@ -119,6 +120,10 @@ def gauss_loglik_kernel(
     for r in prange(n_rows):
         a = agents[r]
         xs = np.empty(Q)
+        us = np.empty(Q)
+        xg = np.empty(Q)
+        gs = np.empty(Q)
+        work = np.empty(Q)
         for q in range(Q):
             out[r, q] = 0.0
         if robust and gamma == 0.0:
@@ -132,13 +137,18 @@ def gauss_loglik_kernel(
                 w = w / gamma
                 for q in range(Q):
                     e = xs[q] - rj
-                    u = w * e * e  # −log of the Gaussian part
-                    if one_sided and e > 0.0:
-                        out[r, q] -= gamma * (u - short)
-                    else:
-                        out[r, q] -= gamma * (
-                            min(u, outlier_nats) - np.log1p(np.exp(-abs(u - outlier_nats)))
-                        )
+                    us[q] = w * e * e  # −log of the Gaussian part
+                    xg[q] = abs(us[q] - outlier_nats)
+                log1p_exp_neg_into(xg, gs, work)  # log(1 + e^{−|u − f|}), vectorized
+                if one_sided:
+                    for q in range(Q):
+                        if xs[q] > rj:
+                            out[r, q] -= gamma * (us[q] - short)
+                        else:
+                            out[r, q] -= gamma * (min(us[q], outlier_nats) - gs[q])
+                else:
+                    for q in range(Q):
+                        out[r, q] -= gamma * (min(us[q], outlier_nats) - gs[q])
             else:
                 for q in range(Q):
                     e = xs[q] - rj
