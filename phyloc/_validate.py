@@ -37,24 +37,40 @@ def finite(name: str, value) -> float:
     return x
 
 
-def integer(name: str, value, *, minimum: int | None = None) -> int:
-    """Return ``value`` as int if it is integral (and >= ``minimum``)."""
+#: The largest count any option takes (2³¹ − 1): counts size arrays and loops, and a larger
+#: one (``points = 1e300``, an integral float) is a slip that would otherwise reach NumPy as an
+#: allocation of petabytes.
+MAX_COUNT = 2**31 - 1
+
+
+def integer(
+    name: str, value, *, minimum: int | None = None, maximum: int | None = MAX_COUNT
+) -> int:
+    """Return ``value`` as int if it is integral (and within ``[minimum, maximum]``).
+
+    Integral floats (``3.0``) are accepted; ``maximum`` defaults to :data:`MAX_COUNT` (``None``
+    for no bound).
+    """
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         if not (isinstance(value, float) and value.is_integer()):
             raise ValidationError(name, value, "an integer is required")
     x = int(value)
     if minimum is not None and x < minimum:
         raise ValidationError(name, value, f"must be an integer >= {minimum}")
+    if maximum is not None and x > maximum:
+        raise ValidationError(name, value, f"must be an integer <= {maximum}")
     return x
 
 
-def integer_field(obj, attr: str, name: str, *, minimum: int | None = None) -> int:
+def integer_field(
+    obj, attr: str, name: str, *, minimum: int | None = None, maximum: int | None = MAX_COUNT
+) -> int:
     """Check the count ``obj.attr`` with :func:`integer` and store it back as int.
 
     For frozen dataclasses: a recipe's ``points = 3.0`` is accepted, and what the spec keeps is
     ``3``, never the float (which NumPy refuses as a count).
     """
-    x = integer(name, getattr(obj, attr), minimum=minimum)
+    x = integer(name, getattr(obj, attr), minimum=minimum, maximum=maximum)
     object.__setattr__(obj, attr, x)
     return x
 

@@ -14,20 +14,12 @@ from pathlib import Path
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 import phyloc.datasets as pds  # noqa: E402
 from phyloc.datasets import schema as sc  # noqa: E402
 from phyloc.errors import PhylocError  # noqa: E402
-
-settings.register_profile(
-    "fast", max_examples=40, deadline=None, suppress_health_check=list(HealthCheck)
-)
-settings.register_profile(
-    "slow", max_examples=600, deadline=None, suppress_health_check=list(HealthCheck)
-)
-settings.load_profile(os.environ.get("PHYLOC_FUZZ", "fast"))
 
 RECIPE = """
 kind = "dataset"

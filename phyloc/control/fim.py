@@ -42,7 +42,7 @@ def control_set(speed_m_s: float = 2.0, n_azimuth: int = 8, elevations_deg=(-45.
     """The finite set U of anchor velocities: a uniform grid of directions in spherical
     coordinates, all of norm ``speed_m_s`` [2].
 
-    ``n_azimuth`` azimuths (``360°/n_azimuth`` apart) at every elevation of ``elevations_deg``
+    ``n_azimuth`` azimuths (``360°/n_azimuth`` apart, 1 to 3600) at every elevation of ``elevations_deg``
     (strictly between −90° and 90°), plus straight up and straight down. The default is the
     26 directions of the 3×3×3 neighbourhood's angular grid (8 azimuths × 3 elevations + 2).
     A 2-D set (``elevations_deg = ()``, no poles) is the ``n_azimuth`` directions in the plane.
@@ -60,7 +60,7 @@ def control_set(speed_m_s: float = 2.0, n_azimuth: int = 8, elevations_deg=(-45.
     [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [-0.0, -1.0]]
     """
     s = v.positive("speed_m_s", speed_m_s)
-    n = v.integer("n_azimuth", n_azimuth, minimum=1)
+    n = v.integer("n_azimuth", n_azimuth, minimum=1, maximum=3600)  # 0.1° apart
     az = 2.0 * np.pi * np.arange(n) / n
     elev = [v.finite("elevations_deg", e) for e in elevations_deg]
     if not elev:

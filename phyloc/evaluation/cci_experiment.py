@@ -86,7 +86,7 @@ class CCIExperimentSpec:
     links : int
         Monte Carlo links per distance (0: no Monte Carlo).
     mc_points : int
-        Monte Carlo distances, log-spaced over ``d0_range_m``.
+        Monte Carlo distances, log-spaced over ``d0_range_m`` (2 to 10 000).
     points : int
         Distances of the closed-form curves.
     d0_range_m : (float, float)
@@ -112,7 +112,8 @@ class CCIExperimentSpec:
         v.integer_field(self, "links", "experiment.links", minimum=0)
         if self.links == 1:
             raise ValidationError("experiment.links", 1, "0 (no Monte Carlo) or >= 2")
-        v.integer_field(self, "mc_points", "experiment.mc_points", minimum=2)
+        # each point is a Monte Carlo run of ``links`` links
+        v.integer_field(self, "mc_points", "experiment.mc_points", minimum=2, maximum=10_000)
         v.integer_field(self, "points", "experiment.points", minimum=2)
         r = self.d0_range_m
         if not isinstance(r, (list, tuple)) or len(r) != 2:
