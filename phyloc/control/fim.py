@@ -42,10 +42,11 @@ def control_set(speed_m_s: float = 2.0, n_azimuth: int = 8, elevations_deg=(-45.
     """The finite set U of anchor velocities: a uniform grid of directions in spherical
     coordinates, all of norm ``speed_m_s`` [2].
 
-    ``n_azimuth`` azimuths (``360°/n_azimuth`` apart, 1 to 3600) at every elevation of ``elevations_deg``
-    (strictly between −90° and 90°), plus straight up and straight down. The default is the
-    26 directions of the 3×3×3 neighbourhood's angular grid (8 azimuths × 3 elevations + 2).
-    A 2-D set (``elevations_deg = ()``, no poles) is the ``n_azimuth`` directions in the plane.
+    ``n_azimuth`` azimuths (``360°/n_azimuth`` apart, 1 to 3600) at every elevation of
+    ``elevations_deg`` (strictly between −90° and 90°), plus straight up and straight down. The
+    default is the 26 directions of the 3×3×3 neighbourhood's angular grid (8 azimuths × 3
+    elevations + 2). A 2-D set (``elevations_deg = ()``, no poles) is the ``n_azimuth``
+    directions in the plane.
 
     Returns
     -------
