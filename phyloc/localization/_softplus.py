@@ -27,8 +27,6 @@ its vector width.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -37,18 +35,9 @@ _LN2_HI = 6.93147180369123816490e-01  # ln 2 to 32 bits: k·_LN2_HI is exact for
 _LN2_LO = 1.90821492927058770002e-10  # ln 2 − _LN2_HI
 _SHIFT = 6755399441055744.0  # 1.5·2^52: adding it rounds to an integer, held in the low bits
 _X_MAX = 708.0
-# e^r = Σ r^k/k!, k = 13 … 0, and atanh(s)/s = Σ s^(2m)/(2m + 1), m = 17 … 0, highest first
-_EXP_TAYLOR = tuple(1.0 / math.factorial(k) for k in range(13, -1, -1))
-_ATANH_ODD = tuple(1.0 / (2 * m + 1) for m in range(17, -1, -1))
-
-
-@njit(cache=True, inline="always")
-def _horner(x, coeffs):
-    """``Σ coeffs[i]·x^(n−1−i)`` (highest power first); a constant tuple, so the loop unrolls."""
-    p = coeffs[0]
-    for i in range(1, len(coeffs)):
-        p = p * x + coeffs[i]
-    return p
+# The two polynomials below are written out term by term: a loop over a tuple of coefficients
+# (one Horner helper for both) compiled to a loop that indexes the tuple at run time, which
+# does not vectorize: 35 ns per value instead of 7 (measured with an empty Numba cache).
 
 
 @njit(cache=True, error_model="numpy")
@@ -63,7 +52,21 @@ def exp_neg_into(x, out, work):
         xi = min(x[i], _X_MAX)
         kf = (xi * _INV_LN2 + _SHIFT) - _SHIFT  # round(x / ln 2), as a float
         r = (kf * _LN2_HI - xi) + kf * _LN2_LO  # −x + k·ln 2
-        out[i] = _horner(r, _EXP_TAYLOR)
+        p = 1.0 / 6227020800.0
+        p = p * r + 1.0 / 479001600.0
+        p = p * r + 1.0 / 39916800.0
+        p = p * r + 1.0 / 3628800.0
+        p = p * r + 1.0 / 362880.0
+        p = p * r + 1.0 / 40320.0
+        p = p * r + 1.0 / 5040.0
+        p = p * r + 1.0 / 720.0
+        p = p * r + 1.0 / 120.0
+        p = p * r + 1.0 / 24.0
+        p = p * r + 1.0 / 6.0
+        p = p * r + 0.5
+        p = p * r + 1.0
+        p = p * r + 1.0
+        out[i] = p
         work[i] = kf + _SHIFT  # k in the low mantissa bits
     bits = work.view(np.int64)
     for i in range(n):
@@ -80,5 +83,23 @@ def log1p_exp_neg_into(x, out, work):
     for i in range(x.size):
         y = out[i]
         s = y / (2.0 + y)
-        t = _horner(s * s, _ATANH_ODD)
+        s2 = s * s
+        t = 1.0 / 35.0
+        t = t * s2 + 1.0 / 33.0
+        t = t * s2 + 1.0 / 31.0
+        t = t * s2 + 1.0 / 29.0
+        t = t * s2 + 1.0 / 27.0
+        t = t * s2 + 1.0 / 25.0
+        t = t * s2 + 1.0 / 23.0
+        t = t * s2 + 1.0 / 21.0
+        t = t * s2 + 1.0 / 19.0
+        t = t * s2 + 1.0 / 17.0
+        t = t * s2 + 1.0 / 15.0
+        t = t * s2 + 1.0 / 13.0
+        t = t * s2 + 1.0 / 11.0
+        t = t * s2 + 1.0 / 9.0
+        t = t * s2 + 1.0 / 7.0
+        t = t * s2 + 1.0 / 5.0
+        t = t * s2 + 1.0 / 3.0
+        t = t * s2 + 1.0
         out[i] = 2.0 * s * t
