@@ -10,7 +10,11 @@ import numpy as np
 import pytest
 
 from phyloc.evaluation.metrics import framework_distance_errors, framework_distance_rmse
-from phyloc.localization._start_kernels import guttman_rhs_kernel, point_cost_kernel
+from phyloc.localization._start_kernels import (
+    best_point_kernel,
+    guttman_rhs_kernel,
+    point_cost_kernel,
+)
 from phyloc.localization.initialization import coarse_positions, range_matrix
 from phyloc.localization.mds import smacof
 from phyloc.localization.sparse_start import (
@@ -27,7 +31,8 @@ from phyloc.network import NetworkSpec, make_network
 
 def _graph_of(p, edges, noise=None):
     edges = np.asarray(edges, dtype=np.int64)
-    i, j = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
+    pairs = np.unique(np.sort(edges, axis=1), axis=0)  # one edge per pair, i < j
+    i, j = pairs[:, 0], pairs[:, 1]
     d = np.linalg.norm(p[i] - p[j], axis=1)
     if noise is not None:
         d = d + noise
@@ -76,6 +81,25 @@ def test_point_cost_kernel_matches_its_twin(one_sided, dim, rng):
     np.testing.assert_allclose(got, _twin_point_cost(points, nbr, delta, w, 2.0, one_sided))
 
 
+@pytest.mark.parametrize("one_sided", [False, True])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_best_point_kernel_is_the_twins_first_argmin_and_min_bit_for_bit(one_sided, dim, rng):
+    """The early-stopping search returns np.argmin / min of the full twin costs exactly,
+    including a tie (the first of two equal best points wins) and a grid of 2000 points."""
+    nbr = rng.normal(size=(25, dim)) * 20
+    delta = np.linalg.norm(nbr - rng.normal(size=dim) * 5, axis=1) + rng.normal(0, 1, 25)
+    w = rng.uniform(0.1, 1, 25)
+    points = rng.normal(size=(2000, dim)) * 30
+    full = point_cost_kernel(points, nbr, delta, w, 2.0, one_sided)
+    k = int(np.argmin(full))
+    points = np.insert(points, k + 7, points[k], axis=0)  # the same best point again, later
+    twin = _twin_point_cost(points, nbr, delta, w, 2.0, one_sided)
+    got_p, got_cost = best_point_kernel(points, nbr, delta, w, 2.0, one_sided)
+    assert got_p == int(np.argmin(twin)) == k
+    assert got_cost == point_cost_kernel(points, nbr, delta, w, 2.0, one_sided)[k]
+    assert got_cost == pytest.approx(twin.min(), rel=1e-12)
+
+
 def test_guttman_kernel_matches_its_twin_and_the_dense_stress(rng):
     X = rng.normal(size=(12, 2)) * 10
     X[3] = X[4]  # coincident nodes: no NaN, c = 0 on that edge
@@ -120,6 +144,54 @@ def test_sparse_smacof_stress_never_increases_and_fixed_rows_stay(rng):
         assert s <= last * (1 + 1e-12)
         last = s
     np.testing.assert_array_equal(X[fixed], p[fixed])
+
+
+def _assembled_system(g, fixed):
+    """The Guttman system assembled with scipy.sparse and sliced, as the library did before it
+    built the arrays in place: the reference the in-place build must equal bit for bit."""
+    from scipy import sparse
+
+    n = g.n
+    diag = np.bincount(g.i, weights=g.w, minlength=n) + np.bincount(g.j, weights=g.w, minlength=n)
+    rows = np.r_[g.i, g.j, np.arange(n)]
+    cols = np.r_[g.j, g.i, np.arange(n)]
+    V = sparse.csr_matrix((np.r_[-g.w, -g.w, diag], (rows, cols)), shape=(n, n))
+    ridge = 1e-10 * max(V.diagonal().mean(), 1e-30)
+    free = np.flatnonzero(~fixed)
+    if not fixed.any():
+        return (V + sparse.identity(n) * ridge).tocsc(), None
+    A = V[free][:, free].tocsc() + sparse.identity(free.size, format="csc") * ridge
+    return A, V[free][:, np.flatnonzero(fixed)]
+
+
+@pytest.mark.parametrize("n_fixed", [0, 1, 3])
+@pytest.mark.parametrize("seed", [5, 6])
+def test_guttman_system_equals_the_scipy_assembly_bit_for_bit(n_fixed, seed):
+    """Same index and data arrays as the scipy assembly (so splu and its solves give the same
+    bits), on a range-limited network with an isolated node and anchors among the nodes."""
+    from phyloc.localization.sparse_start import _guttman_system
+
+    rng = np.random.default_rng(seed)
+    net = _network(45, seed)
+    p, lk = net.positions[0], net.links
+    r = np.linalg.norm(p[lk[:, 0]] - p[lk[:, 1]], axis=1)
+    g = pair_graph(lk, r, np.ones(len(lk), bool), net.n_nodes, "mean")  # unique pairs i < j
+    g = g.with_weights(rng.uniform(0.01, 2.0, g.n_edges))
+    keep = (g.i != 7) & (g.j != 7)  # node 7 isolated: its row is the ridge alone
+    g = PairGraph(g.n, g.i[keep], g.j[keep], g.delta[keep], g.w[keep])
+    fixed = np.zeros(g.n, bool)
+    fixed[rng.choice(g.n, n_fixed, replace=False)] = True
+    A, Vfa = _guttman_system(g, fixed)
+    A_ref, Vfa_ref = _assembled_system(g, fixed)
+    A_ref.sort_indices()
+    for got, ref in ((A, A_ref), (Vfa, Vfa_ref)):
+        if ref is None:
+            assert got is None
+            continue
+        assert got.format == ref.format and got.shape == ref.shape
+        np.testing.assert_array_equal(got.indptr, ref.indptr)
+        np.testing.assert_array_equal(got.indices, ref.indices)
+        np.testing.assert_array_equal(got.data, ref.data)
 
 
 # -- landmark start --------------------------------------------------------------------------------
