@@ -101,6 +101,34 @@ def test_intervals_are_reproducible_and_nan_without_units():
     assert interval(Pooled.rmse([np.ones(2), np.ones(3)])) == (1.0, 1.0)
 
 
+def test_a_figure_is_the_same_bits_for_any_order_of_its_units():
+    rng = np.random.default_rng(11)
+    num, den = rng.lognormal(0, 3, 12), rng.integers(1, 9, 12).astype(float)
+    for kind in ("rmse", "mean"):
+        ref = Pooled(num, den, kind).value
+        for _ in range(20):
+            perm = rng.permutation(12)
+            assert Pooled(num[perm], den[perm], kind).value == ref
+
+
+def test_interval_ends_follow_the_data_not_their_last_bits():
+    """Eight heavy-tailed units (one 1e5 times the others): changing every unit by ~3e-9
+    relative moves an interval end by about as much. With the units summed in their resampled
+    order, a resample that permutes the units fell on either side of the figure by rounding,
+    BCa's bias count changed by one, and lower ends jumped by up to 20 % (trials 6 and 23)."""
+    rng = np.random.default_rng(7)
+    worst = 0.0
+    for trial in range(40):
+        num = rng.lognormal(0, 1, 8)
+        num[0] *= 1e5
+        den = np.ones(8)
+        moved = num * (1 + 3e-9 * rng.normal(size=8))
+        a = interval(Pooled(num, den, "mean"), seed=3605, name=f"t{trial}")
+        b = interval(Pooled(moved, den, "mean"), seed=3605, name=f"t{trial}")
+        worst = max(worst, *(abs(y - x) / abs(x) for x, y in zip(a, b, strict=True)))
+    assert worst < 1e-6
+
+
 def test_resolve_writes_values_intervals_and_units():
     a = Pooled.rmse([[1.0, 2.0], [0.5], [3.0, 1.0]])
     b = Pooled.rmse([[2.0, 2.0], [1.0], [3.0, 2.0]])

@@ -229,9 +229,19 @@ def _ratio(a, b):
         return float(np.divide(a, b)) if b != 0 else math.nan
 
 
+def _sum(x, axis):
+    """``Σ x`` over ``axis`` in ascending order: the same bits for any order of the same
+    values, so a resample that is a permutation of the units gives the figure itself exactly.
+    Summed in the units' order instead, it differs from the figure in its last bits, and BCa's
+    bias count ``#(θ*_b < θ̂)`` then counts it on either side at random; with a few units
+    (10 units: one resample in 3000 is a permutation) and a gappy bootstrap distribution, that
+    moved an interval end by up to 20 % when the data changed by 1e-9."""
+    return np.sum(np.sort(x, axis=axis), axis=axis)
+
+
 def _combine(num, den, kind, axis=-1):
     with np.errstate(divide="ignore", invalid="ignore"):
-        x = np.divide(np.sum(num, axis=axis), np.sum(den, axis=axis))
+        x = np.divide(_sum(num, axis), _sum(den, axis))
         x = np.sqrt(x) if kind == "rmse" else x
     return float(x) if np.ndim(x) == 0 else x
 
