@@ -208,8 +208,9 @@ def _guttman_system(g: PairGraph, fixed: np.ndarray):
 
     Built in the arrays' final order (``i < j`` unique and ``w > 0`` per :class:`PairGraph`):
     the same index and data arrays as assembling ``V`` with ``scipy.sparse`` and slicing it,
-    so the LU factorization and its solves are the same bits, at a twentieth of the cost for
-    the tens of nodes of the paper's networks, where the assembly dominated each fit.
+    so the LU factorization and its solves are the same bits, at a quarter to a half of the
+    assembly's cost for the tens of nodes of the paper's networks (where the assembly took
+    two thirds of each fit).
     """
     n = g.n
     diag = np.bincount(g.i, weights=g.w, minlength=n) + np.bincount(g.j, weights=g.w, minlength=n)
