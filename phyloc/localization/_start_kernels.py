@@ -45,8 +45,9 @@ def point_cost_kernel(points, nbr, delta, w, c, one_sided):
 @njit(cache=True)
 def best_point_kernel(points, nbr, delta, w, c, one_sided):
     """``(p, cost)`` of the first point of lowest cost (:func:`point_cost_kernel`'s
-    ``argmin`` and ``min``, the same bits): a point's sum stops once it reaches the best
-    cost so far, since its non-negative terms cannot bring it back below (weights ``w > 0``)."""
+    ``argmin`` and ``min``, the same bits, for finite costs): a point's sum stops once it
+    reaches the best cost so far, since its non-negative terms cannot bring it back below
+    (weights ``w > 0``)."""
     best, best_cost = 0, np.inf
     for p in range(points.shape[0]):
         total = _point_cost(points, p, nbr, delta, w, c, one_sided, best_cost)
