@@ -231,9 +231,10 @@ def _guttman_system(g: PairGraph, fixed: np.ndarray):
     if not fixed.any():
         return A, None
     held_pos = np.cumsum(fixed) - 1
-    cross_f = np.r_[g.i[free[g.i] & fixed[g.j]], g.j[fixed[g.i] & free[g.j]]]
-    cross_h = np.r_[g.j[free[g.i] & fixed[g.j]], g.i[fixed[g.i] & free[g.j]]]
-    cross_w = np.r_[g.w[free[g.i] & fixed[g.j]], g.w[fixed[g.i] & free[g.j]]]
+    out, into = free[g.i] & fixed[g.j], fixed[g.i] & free[g.j]  # edges free–held, held–free
+    cross_f = np.r_[g.i[out], g.j[into]]
+    cross_h = np.r_[g.j[out], g.i[into]]
+    cross_w = np.r_[g.w[out], g.w[into]]
     r, c = pos[cross_f], held_pos[cross_h]
     order = np.lexsort((c, r))
     Vfa = sparse.csr_matrix(
