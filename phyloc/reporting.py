@@ -109,7 +109,8 @@ def base_figure(name: str) -> str:
 
 def is_measurement(name: str) -> bool:
     """Whether figure ``name`` measures the machine rather than the recipe (a wall time, a
-    memory peak, a cost exponent: :data:`MEASUREMENT_SUFFIXES`, or a ``runtime`` figure),
+    memory peak, a cost exponent: :data:`MEASUREMENT_SUFFIXES`; a ``runtime`` figure; a
+    quantity whose last name part starts with ``time_``, such as a ratio of two wall times),
     also for its interval bounds and per-unit series (:func:`base_figure`).
 
     A speed in m/s (:data:`RESULT_SUFFIXES`) is a result, not a wall time:
@@ -118,11 +119,14 @@ def is_measurement(name: str) -> bool:
     (True, False)
     >>> is_measurement("edh.scenario1.rmse_v_m_s"), is_measurement("pfbp.s1.step_s.ci_high")
     (False, True)
+    >>> is_measurement("poa_nbp_vs_pbp.time_to_convergence_ratio")
+    True
     """
     name = base_figure(name)
     if name.endswith(RESULT_SUFFIXES):
         return False
-    return "runtime" in name or name.endswith(MEASUREMENT_SUFFIXES)
+    last = name.rsplit(".", 1)[-1]
+    return "runtime" in name or name.endswith(MEASUREMENT_SUFFIXES) or last.startswith("time_")
 
 
 #: A JSON list of numbers (no nested list or object) as ``json.dumps(indent=2)`` writes it.

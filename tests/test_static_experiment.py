@@ -416,6 +416,12 @@ def test_pooled_point_values_are_those_of_all_values_at_once():
         np.testing.assert_array_equal(p.num, [np.sum(r[f"{m}|err"][-1]) for r in res])
         np.testing.assert_array_equal(p.den, [700, 700, 700])
         assert p.value == pytest.approx(p.num.sum() / p.den.sum(), rel=1e-13)
+        for it in range(exp.n_iterations):  # Fig. 10 point by point, with its own units
+            e_it = np.concatenate([r[f"{m}|err"][it] for r in res])
+            q = f[f"{m}.mean_error_it{it + 1}_m"]
+            assert q.value == e_it.mean()
+            np.testing.assert_array_equal(q.num, [np.sum(r[f"{m}|err"][it]) for r in res])
+        assert f[f"{m}.mean_error_it3_m"].value == p.value  # the last iteration
     area = np.concatenate([r["poa|4|area"][1] for r in res])
     assert f["poa.ne4.area_it2_m2"].value == area[np.isfinite(area)].mean()
     assert f["poa.ne4.area_it2_m2"].den.sum() == np.isfinite(area).sum()

@@ -134,6 +134,10 @@ def aggregate(results, exp, names=None):
         series[f"{m}.mean_error_m"] = curve
         final = err[-1]
         figures[f"{m}.mean_error_m"] = _as_computed(_mean_units(errs), final.mean())
+        for it in range(exp.n_iterations):  # Fig. 10 per iteration, with units (ratios)
+            figures[f"{m}.mean_error_it{it + 1}_m"] = _as_computed(
+                _mean_units([r[f"{m}|err"][it] for r in results]), curve[it]
+            )
         figures[f"{m}.rmse_m"] = _as_computed(Pooled.rmse(errs), np.sqrt(np.mean(final**2)))
         # per topology: the paper's rule on its own mean-error curve, its times
         conv = [

@@ -121,6 +121,9 @@ with ``p`` for the decimal point)::
                                         5 per ellipse)
     ``<m>.mean_error_m``                average localization error after convergence [m]
                                         (Fig. 10)
+    ``<m>.mean_error_it<l>_m``          average localization error after iteration ``l``
+                                        (1 … ``n_iterations``; Fig. 10's curve point by
+                                        point, so that two iterations compare paired) [m]
     ``<m>.rmse_m``                      RMSE after convergence [m]
     ``<m>.convergence_iteration``       iterations to convergence, paper's rule, in each
                                         topology; mean over topologies (Fig. 10)
@@ -160,8 +163,9 @@ with ``p`` for the decimal point)::
                                         no N_S: the same figure at every ``<n>``)
 
 Intervals: every figure pooled over topologies — the areas, containment and dropped
-fractions, acceptance rate, overhead means, mean errors, RMSEs and outages (sweep and
-``pbp.sweep`` included), ``convergence_iteration`` and the wall times ``poa.time_per_node_s``,
+fractions, acceptance rate, overhead means, mean errors (per iteration too), RMSEs and
+outages (sweep and ``pbp.sweep`` included), ``convergence_iteration`` and the wall times
+``poa.time_per_node_s``,
 ``<m>.time_per_node_iteration_s``, ``<m>.time_to_convergence_s``,
 ``<m>.start_time_per_node_s`` and ``<m>.ns<n>.time_per_node_iteration_s`` — has a 95 % interval
 ``<name>.ci_low`` / ``<name>.ci_high`` (:mod:`phyloc.evaluation.statistics`: bootstrap over
