@@ -165,8 +165,7 @@ with ``p`` for the decimal point)::
 Intervals: every figure pooled over topologies — the areas, containment and dropped
 fractions, acceptance rate, overhead means, mean errors (per iteration too), RMSEs and
 outages (sweep and ``pbp.sweep`` included), ``convergence_iteration`` and the wall times
-``poa.time_per_node_s``,
-``<m>.time_per_node_iteration_s``, ``<m>.time_to_convergence_s``,
+``poa.time_per_node_s``, ``<m>.time_per_node_iteration_s``, ``<m>.time_to_convergence_s``,
 ``<m>.start_time_per_node_s`` and ``<m>.ns<n>.time_per_node_iteration_s`` — has a 95 % interval
 ``<name>.ci_low`` / ``<name>.ci_high`` (:mod:`phyloc.evaluation.statistics`: bootstrap over
 topologies; fractions and outages: exact binomial interval on the totals) and its per-topology
